@@ -1,0 +1,38 @@
+"""Error types of guaca_py: every failure names where it came from and what to do."""
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class GuacaError(Exception):
+    """Base class of all errors raised by guaca_py."""
+
+
+class ConfigError(GuacaError):
+    """A file (scene, pipeline, material) is malformed; names file, line, key and reason."""
+
+    def __init__(self, reason: str, file: str | Path | None = None, line: int | None = None,
+                 key: str | None = None, hint: str | None = None):
+        self.reason, self.file, self.line, self.key, self.hint = reason, file, line, key, hint
+        where = str(file) if file is not None else "<input>"
+        if line is not None:
+            where += f":{line}"
+        msg = f"{where}: "
+        if key:
+            msg += f"'{key}': "
+        msg += reason
+        if hint:
+            msg += f" ({hint})"
+        super().__init__(msg)
+
+
+class ShaderCompileError(GuacaError):
+    """GLSL failed to compile; the message maps compiler lines back to material/template files."""
+
+
+class DeviceError(GuacaError):
+    """No usable OpenGL 4.5 device, or a feature the request needs is missing on this device."""
+
+
+class UnsupportedMethodError(DeviceError):
+    """A transparency method cannot run on the current device; the message says why."""
