@@ -1,0 +1,201 @@
+"""Load and validate one material description: typed uniforms and GLSL stage methods."""
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ConfigError
+
+#: uniform type -> number of floats (sampler2D holds a texture path instead)
+UNIFORM_SIZES = {"float": 1, "int": 1, "vec2": 2, "vec3": 3, "vec4": 4, "mat4": 16, "sampler2D": 0}
+STAGES = ("displacement", "visibility")
+_TOP_KEYS = {"name", "description", "uniforms", "displacement", "visibility"}
+_ALPHA_WRITE = re.compile(r"\bgua_alpha\s*([-+*/]?=)(?!=)\s*([^;]*);")
+_IDENT = re.compile(r"^[A-Za-z_]\w*$")
+_LITERAL_ONE = re.compile(r"^\(?\s*1(\.0*)?f?\s*\)?$")
+#: built-in texture names usable as sampler defaults
+BUILTIN_TEXTURES = ("white", "black", "normal")
+
+
+@dataclass
+class UniformSpec:
+    """A typed material uniform with its default value."""
+
+    name: str
+    type: str
+    default: object
+
+    def glsl_decl(self) -> str:
+        """GLSL declaration of this uniform."""
+        return f"uniform {self.type} {self.name};"
+
+
+@dataclass
+class Method:
+    """One GLSL method (a `void NAME()` function on the gua_* interface) of a stage."""
+
+    name: str
+    stage: str
+    source: str
+    file: Path          # where the source text lives (JSON or .glsl)
+    first_line: int     # line in `file` where the source starts
+
+
+@dataclass
+class MaterialDescription:
+    """A material: name, typed uniforms with defaults, displacement and visibility methods."""
+
+    name: str
+    uniforms: dict[str, UniformSpec]
+    methods: dict[str, list[Method]]
+    path: Path
+    doc: str = ""
+    _alpha_writes: list[tuple[str, str]] = field(default_factory=list, repr=False)
+
+    def __post_init__(self):
+        for m in self.methods.get("displacement", []) + self.methods.get("visibility", []):
+            self._alpha_writes += _ALPHA_WRITE.findall(_strip_comments(m.source))
+
+    def is_transparent(self, values: dict) -> bool:
+        """Whether an instance with these uniform values can produce alpha < 1.
+
+        Opaque when no method writes gua_alpha, when every write assigns the literal 1,
+        or when every write assigns a float uniform whose instance value is 1 (constant
+        alpha materials such as `pbr` with alpha 1). Anything else is decided per fragment.
+        """
+        for op, rhs in self._alpha_writes:
+            rhs = rhs.strip()
+            if op == "=" and _LITERAL_ONE.match(rhs):
+                continue
+            if op in ("=", "*=") and _IDENT.match(rhs) and rhs in self.uniforms \
+                    and self.uniforms[rhs].type == "float" and float(values.get(rhs, 1.0)) >= 1.0:
+                continue
+            return True
+        return False
+
+    def resolve_values(self, overrides: dict, where: tuple[str | Path | None, int | None] = (None, None)) -> dict:
+        """Defaults merged with instance overrides, type-checked; errors cite the instance."""
+        file, line = where
+        out = {n: u.default for n, u in self.uniforms.items()}
+        for key, value in (overrides or {}).items():
+            if key not in self.uniforms:
+                raise ConfigError(f"material '{self.name}' has no uniform '{key}'", file, line, key,
+                                  f"known uniforms: {', '.join(self.uniforms) or 'none'}")
+            out[key] = check_value(self.uniforms[key].type, value, file, line, key)
+        return out
+
+
+def _strip_comments(src: str) -> str:
+    src = re.sub(r"/\*.*?\*/", "", src, flags=re.S)
+    return re.sub(r"//[^\n]*", "", src)
+
+
+def check_value(typ: str, value, file, line, key):
+    """Validate one uniform value against its type; returns the normalized value."""
+    size = UNIFORM_SIZES[typ]
+    if typ == "sampler2D":
+        if not isinstance(value, str):
+            raise ConfigError(f"sampler2D needs a texture path string, got {value!r}", file, line, key)
+        return value
+    if typ in ("float", "int"):
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"expected {typ}, got {type(value).__name__} {value!r}", file, line, key,
+                              "write a plain number")
+        if typ == "int" and not float(value).is_integer():
+            raise ConfigError(f"expected int, got {value!r}", file, line, key)
+        return int(value) if typ == "int" else float(value)
+    arr = np.asarray(value, dtype=object).ravel() if isinstance(value, (list, tuple)) else None
+    if arr is None or arr.size != size or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in arr):
+        raise ConfigError(f"expected {typ} ({size} numbers), got {value!r}", file, line, key)
+    return [float(v) for v in arr]
+
+
+def _line_of(text: str, pos: int) -> int:
+    return text.count("\n", 0, pos) + 1
+
+
+def _source_start(text: str, spos: int) -> int:
+    """Offset of the first source character after '"source":' (inside a list of lines, its first string)."""
+    colon = text.find(":", spos)
+    rest = text[colon + 1:].lstrip()
+    start = len(text) - len(rest)
+    return text.find('"', start) if rest.startswith("[") else start
+
+
+def _method(entry, stage: str, i: int, path: Path, text: str, search_from: int) -> tuple[Method, int]:
+    key = f"{stage}[{i}]"
+    if not isinstance(entry, dict) or "name" not in entry or not ({"source", "file"} & set(entry)):
+        raise ConfigError("a method needs 'name' and either 'source' or 'file'", path, None, key,
+                          'e.g. {"name": "my_method", "source": "void my_method() { gua_alpha = 0.5; }"}')
+    name = entry["name"]
+    if not isinstance(name, str) or not _IDENT.match(name):
+        raise ConfigError(f"method name {name!r} is not a GLSL identifier", path, None, key)
+    pos = text.find(f'"{name}"', search_from)
+    pos = pos if pos >= 0 else search_from
+    if "file" in entry:
+        src_path = (path.parent / entry["file"]).resolve()
+        if not src_path.is_file():
+            raise ConfigError(f"method source file not found: {src_path}", path, _line_of(text, pos), key)
+        source, file, first = src_path.read_text(encoding="utf-8"), src_path, 1
+    else:
+        src = entry["source"]
+        source = "\n".join(src) if isinstance(src, list) else src
+        if not isinstance(source, str):
+            raise ConfigError("'source' must be a string or a list of lines", path, _line_of(text, pos), key)
+        spos = text.find('"source"', pos)
+        spos = spos if spos >= 0 else pos
+        # a list of lines starts on the line after '"source": ['
+        first = _line_of(text, _source_start(text, spos))
+        file = path
+    if not re.search(rf"\bvoid\s+{name}\s*\(\s*\)", source):
+        raise ConfigError(f"method source does not define 'void {name}()'", file, first, key,
+                          "each method is a GLSL function named like the method, taking no arguments")
+    return Method(name, stage, source, file, first), pos + 1
+
+
+def load_material(path: str | Path) -> MaterialDescription:
+    """Parse a material JSON file; every problem raises ConfigError with file and line."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError("material file not found", path)
+    text = path.read_text(encoding="utf-8")
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"invalid JSON: {exc.msg}", path, exc.lineno, hint=f"column {exc.colno}") from exc
+    if not isinstance(data, dict):
+        raise ConfigError("a material description is a JSON object", path, 1)
+    unknown = set(data) - _TOP_KEYS
+    if unknown:
+        k = sorted(unknown)[0]
+        raise ConfigError(f"unknown key '{k}'", path, _line_of(text, max(text.find(f'"{k}"'), 0)), k,
+                          f"known keys: {', '.join(sorted(_TOP_KEYS))}")
+    name = data.get("name", path.stem)
+    uniforms: dict[str, UniformSpec] = {}
+    for uname, spec in (data.get("uniforms") or {}).items():
+        line = _line_of(text, max(text.find(f'"{uname}"'), 0))
+        if not _IDENT.match(uname) or uname.startswith("gua_"):
+            raise ConfigError(f"uniform name {uname!r} is not allowed", path, line, uname,
+                              "use a GLSL identifier not starting with gua_")
+        if not isinstance(spec, dict) or spec.get("type") not in UNIFORM_SIZES:
+            raise ConfigError(f"uniform needs a 'type' out of {', '.join(UNIFORM_SIZES)}", path, line, uname)
+        default = spec.get("default", "white" if spec["type"] == "sampler2D" else
+                           (0.0 if UNIFORM_SIZES[spec["type"]] == 1 else [0.0] * UNIFORM_SIZES[spec["type"]]))
+        uniforms[uname] = UniformSpec(uname, spec["type"], check_value(spec["type"], default, path, line, uname))
+    methods: dict[str, list[Method]] = {}
+    pos = 0
+    for stage in STAGES:
+        entries = data.get(stage) or []
+        if not isinstance(entries, list):
+            raise ConfigError(f"'{stage}' must be a list of methods", path, None, stage)
+        stage_pos = text.find(f'"{stage}"')
+        pos = stage_pos if stage_pos >= 0 else pos
+        methods[stage] = []
+        for i, entry in enumerate(entries):
+            m, pos = _method(entry, stage, i, path, text, pos)
+            methods[stage].append(m)
+    return MaterialDescription(name, uniforms, methods, path, data.get("description", ""))

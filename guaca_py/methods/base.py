@@ -1,0 +1,83 @@
+"""The interface every transparency method implements inside the deferred pipeline."""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, ClassVar
+
+from ..pipeline.settings import NUMBER, Setting, unit_interval
+
+if TYPE_CHECKING:
+    from ..context import Capabilities
+    from ..pipeline.frame import FrameState
+
+
+class TransparencyMethod:
+    """A strategy for transparent fragments: how the geometry pass stores them, how composite resolves them.
+
+    Life cycle per frame: prepare() → render_transparent() (draws the transparent draw list
+    one or more times) → finish() (reads counters; may ask for a re-render) → the composite pass
+    includes resolve_template() and calls bind_composite().
+    """
+
+    id: ClassVar[str] = ""
+    exact: ClassVar[bool] = True
+    geometry_passes: ClassVar[str] = "1"
+    summary: ClassVar[str] = ""
+    SETTINGS: ClassVar[dict[str, Setting]] = {}
+
+    def __init__(self, settings: dict, caps: "Capabilities"):
+        self.settings = settings
+        self.caps = caps
+
+    @classmethod
+    def settings_schema(cls) -> dict[str, Setting]:
+        """Settings accepted under `transparency:` for this method (common ones included)."""
+        common = {"threshold": Setting(NUMBER, 0.98, "saturation threshold for early termination", check=unit_interval)}
+        return {**common, **cls.SETTINGS}
+
+    @classmethod
+    def unsupported_reason(cls, caps: "Capabilities") -> str | None:
+        """Why this device cannot run the method, or None when it can."""
+        return None
+
+    # --- geometry pass -------------------------------------------------------------
+    def fragment_template(self) -> str:
+        """Template included by transparent geometry programs; defines gua_submit_transparent()."""
+        raise NotImplementedError
+
+    def template_vars(self) -> dict:
+        """Variables for this method's templates (also part of the program cache key)."""
+        return {}
+
+    def extensions(self) -> str:
+        """GLSL #extension lines the method's code needs."""
+        return ""
+
+    def prepare(self, frame: "FrameState") -> None:
+        """Allocate/clear per-frame storage before transparent geometry is drawn."""
+
+    def render_transparent(self, frame: "FrameState") -> None:
+        """Draw the transparent draw list (frame.draw_transparent) as many times as the method needs."""
+        raise NotImplementedError
+
+    def finish(self, frame: "FrameState") -> bool:
+        """Read counters into frame.stats; return True to ask for the frame to be rendered again."""
+        return False
+
+    # --- composite pass ------------------------------------------------------------
+    def resolve_template(self) -> str:
+        """Template included by the composite pass; defines gua_resolve_transparent()."""
+        raise NotImplementedError
+
+    def bind_composite(self, frame: "FrameState", program) -> None:
+        """Bind storage and uniforms the resolve code reads."""
+
+    def composite_threshold(self) -> float:
+        """Accumulated alpha at which the composite stops walking fragments."""
+        return float(self.settings.get("threshold", 1.0))
+
+    def memory(self) -> dict:
+        """Bytes allocated and used by each buffer the method holds."""
+        return {}
+
+    def release(self) -> None:
+        """Free GPU storage."""

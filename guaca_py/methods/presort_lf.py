@@ -1,0 +1,186 @@
+"""PreSortLF / PreSortLF*: sorted lock-free A-buffer insertion (optionally with early termination)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..pipeline.settings import NUMBER, Setting
+from .base import TransparencyMethod
+
+NODE_PAYLOAD_BYTES = 32          # depth + 7 payload words, see abuffer/layout.glsl.j2
+COUNTERS = ("alloc", "overflow", "et_dropped", "et_culled", "stored", "guard")
+_INT64_EXT = "#extension GL_ARB_gpu_shader_int64 : require\n#extension GL_NV_shader_atomic_int64 : require\n"
+
+
+def _budget(v) -> str | None:
+    if v == "auto" or (isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0):
+        return None
+    return f"must be 'auto' or a positive number of MB, got {v!r}"
+
+
+class PreSortLF(TransparencyMethod):
+    """Per-pixel lists kept sorted at insertion by lock-free CAS (32-bit) or atomicMax (64-bit)."""
+
+    id = "presort_lf"
+    exact = True
+    geometry_passes = "1"
+    early_termination = False
+    summary = "sorted lock-free insertion into per-pixel lists (no early termination)"
+    SETTINGS = {
+        "budget_mb": Setting((str, int, float), "auto", "node pool size in MB, or 'auto' (grow to the need)", check=_budget),
+        "max_regrow": Setting((int,), 2, "re-renders allowed to grow an 'auto' pool after overflow"),
+        "max_steps": Setting((int,), 4096, "bound on list steps per insertion (guards against livelock)"),
+    }
+
+    def __init__(self, settings, caps):
+        super().__init__(settings, caps)
+        self.path = caps.insertion_path
+        self.link_bytes = 8 if self.path == "64bit" else 4
+        self.node_bytes = NODE_PAYLOAD_BYTES + self.link_bytes
+        self._links = self._nodes = self._counters = self._cull = None
+        self._pixels = 0
+        self.capacity = 0   # nodes in the pool, node 0 included
+        self.regrown = 0
+        self._last = {}
+
+    # ------------------------------------------------------------------ storage
+    def _initial_capacity(self, pixels: int) -> int:
+        if self.settings["budget_mb"] != "auto":
+            return max(2, int(self.settings["budget_mb"] * 1024 * 1024) // self.node_bytes)
+        return max(1024, pixels)  # one node per pixel; grown to the measured need on overflow
+
+    def _alloc(self, ctx, pixels: int, capacity: int, size) -> None:
+        if self._links is None or self._pixels != pixels or self.capacity != capacity:
+            self.release()
+            self._pixels, self.capacity = pixels, capacity
+            self._links = ctx.buffer(reserve=(pixels + capacity) * self.link_bytes)
+            self._nodes = ctx.buffer(reserve=capacity * NODE_PAYLOAD_BYTES)
+            self._counters = ctx.buffer(reserve=len(COUNTERS) * 4)
+            self._cull = ctx.texture(size, 1, dtype="u4")
+
+    def prepare(self, frame) -> None:
+        """Size the pool, clear list heads, counters and the saturation depth."""
+        cap = self.capacity if (self._pixels == frame.pixel_count and self.capacity) else \
+            self._initial_capacity(frame.pixel_count)
+        self._alloc(frame.ctx, frame.pixel_count, cap, (frame.width, frame.height))
+        self._counters.write(np.array([1] + [0] * (len(COUNTERS) - 1), dtype=np.uint32).tobytes())
+        clear = frame.renderer.shaders.compute("abuffer/clear.comp.j2")
+        self._links.bind_to_storage_buffer(0)
+        self._cull.bind_to_image(0, read=False, write=True)
+        clear["gua_size"] = (frame.width, frame.height)
+        clear["gua_words_per_link"] = self.link_bytes // 4
+        clear.run(math.ceil(frame.width / 16), math.ceil(frame.height / 16), 1)
+        frame.ctx.memory_barrier()
+
+    def _bind(self) -> None:
+        self._links.bind_to_storage_buffer(0)
+        self._nodes.bind_to_storage_buffer(1)
+        self._counters.bind_to_storage_buffer(2)
+
+    def threshold(self) -> float:
+        """Insertion saturation threshold; above 1 means never saturate."""
+        return float(self.settings["threshold"]) if self.early_termination else 2.0
+
+    def render_transparent(self, frame) -> None:
+        """One geometry pass: every transparent fragment tries to insert itself."""
+        mgl = frame.renderer.moderngl
+        g = frame.resources["gbuffer"]
+        g["depth_only"].use()
+        g["depth_only"].depth_mask = False  # hardware test against opaque depth only
+        frame.ctx.enable(mgl.DEPTH_TEST)
+        frame.ctx.depth_func = "<"
+        self._bind()
+        self._cull.bind_to_image(0, read=True, write=True)
+        frame.draw_transparent({"gua_ab_capacity": self.capacity, "gua_pixel_count": frame.pixel_count,
+                                "gua_ab_threshold": self.threshold()})
+        g["fbo"].depth_mask = True
+
+    def finish(self, frame) -> bool:
+        """Read counters; with an 'auto' budget, grow the pool to the need and ask for a re-render."""
+        c = dict(zip(COUNTERS, np.frombuffer(self._counters.read(), dtype=np.uint32).tolist()))
+        requested = c["alloc"] - 1              # node 0 is the null node
+        used = min(requested, self.capacity - 1)
+        frame.stats["fragments"] = {
+            "stored": c["stored"], "overflow": c["overflow"], "et_dropped": c["et_dropped"],
+            "et_culled": c["et_culled"], "early_termination_culled": c["et_dropped"] + c["et_culled"],
+            "guard_abandoned": c["guard"], "nodes_requested": requested,
+        }
+        self._last = {"used_nodes": used}
+        if c["overflow"]:
+            frame.stats.setdefault("warnings", []).append(
+                f"A-buffer overflow: {c['overflow']} fragments dropped (pool {self.capacity - 1} nodes, "
+                f"frame asked for {requested}); raise transparency.budget_mb or use 'auto'")
+        if c["guard"]:
+            frame.stats.setdefault("warnings", []).append(f"{c['guard']} insertions hit max_steps and were dropped")
+        auto = self.settings["budget_mb"] == "auto"
+        if c["overflow"] and auto and self.regrown < self.settings["max_regrow"]:
+            self.regrown += 1
+            self.capacity_request(int(requested * 1.15) + 1024)
+            return True
+        if auto and not c["overflow"] and requested + 1 < self.capacity // 4 and self.capacity > 4096:
+            self.capacity_request(max(1024, int(requested * 1.15) + 1024))  # shrink for the next frame
+        return False
+
+    def capacity_request(self, nodes: int) -> None:
+        """Resize the pool at the next prepare()."""
+        if self._links is not None:
+            self._links.release()
+            self._nodes.release()
+            self._links = None
+        self.capacity = nodes
+
+    # ------------------------------------------------------------------ shaders
+    def fragment_template(self) -> str:
+        """Insertion code."""
+        return "abuffer/insert_lockfree.glsl.j2"
+
+    def resolve_template(self) -> str:
+        """Sorted list walk."""
+        return "abuffer/resolve_sorted.glsl.j2"
+
+    def template_vars(self) -> dict:
+        """Insertion path and loop bound."""
+        return {"ab_path": self.path, "max_steps": int(self.settings["max_steps"])}
+
+    def extensions(self) -> str:
+        """64-bit atomics where the path uses them."""
+        return _INT64_EXT if self.path == "64bit" else ""
+
+    def bind_composite(self, frame, program) -> None:
+        """The composite walks the same lists."""
+        self._bind()
+        for name, value in (("gua_ab_capacity", self.capacity), ("gua_pixel_count", frame.pixel_count),
+                            ("gua_ab_threshold", self.threshold())):
+            if name in program:
+                program[name] = value
+
+    def composite_threshold(self) -> float:
+        """Without early termination the walk only stops at full opacity."""
+        return float(self.settings["threshold"]) if self.early_termination else 1.0
+
+    def memory(self) -> dict:
+        """Heads, pool (allocated and used), counters and saturation-depth image, in bytes."""
+        if self._links is None and not self._pixels:
+            return {}
+        used = self._last.get("used_nodes", 0)
+        return {"abuffer_heads": self._pixels * self.link_bytes,
+                "abuffer_pool": self.capacity * self.node_bytes,
+                "abuffer_pool_used": (used + 1) * self.node_bytes,
+                "abuffer_cull_depth": self._pixels * 4,
+                "abuffer_node_bytes": self.node_bytes}
+
+    def release(self) -> None:
+        """Free all buffers."""
+        for b in (self._links, self._nodes, self._counters, self._cull):
+            if b is not None:
+                b.release()
+        self._links = self._nodes = self._counters = self._cull = None
+
+
+class PreSortLFET(PreSortLF):
+    """PreSortLF* — the default: insertion stops once the pixel is saturated in front of the fragment."""
+
+    id = "presort_lf_et"
+    early_termination = True
+    summary = "sorted lock-free insertion with early termination (guacamole's default)"

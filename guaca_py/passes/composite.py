@@ -1,0 +1,46 @@
+"""Shade-composite pass: shades and blends transparent and opaque fragments front to back."""
+from __future__ import annotations
+
+import numpy as np
+
+from .base import FullscreenPass
+
+
+class CompositePass(FullscreenPass):
+    """Full-screen pass producing linear HDR color ('hdr')."""
+
+    name = "composite"
+    reads = ("gbuffer", "transparent", "light_grid")
+    writes = ("hdr",)
+    target_dtype = "f4"
+
+    def program(self, frame):
+        """Composite program for this method, light lookup and transparency presence."""
+        r = self.renderer
+        method = frame.resources.get("transparent")
+        lights = r.pass_named("light_culling").template_vars()
+        tvars = dict(has_transparency=method is not None, **lights,
+                     method_extensions=method.extensions() if method else "",
+                     method_resolve_template=method.resolve_template() if method else "",
+                     **(method.template_vars() if method else {}))
+        key = ("composite", tuple(sorted((k, str(v)) for k, v in tvars.items())), method.id if method else None)
+        return r.shaders.program(key, {"vertex_shader": ("composite/fullscreen.vert.j2", {}),
+                                       "fragment_shader": ("composite/shade_composite.frag.j2", tvars)},
+                                 label="composite")
+
+    def execute(self, frame) -> None:
+        """Shade every pixel; writes frame.resources['hdr']."""
+        prog = self.program(frame)
+        frame.set_frame_uniforms(prog)
+        method = frame.resources.get("transparent")
+        self.renderer.pass_named("light_culling").bind(frame, prog)
+        if method is not None:
+            method.bind_composite(frame, prog)
+        threshold = method.composite_threshold() if method else 1.0
+        prog["gua_threshold"] = threshold
+        prog["gua_background"].write(np.asarray(frame.scene.background, dtype=np.float32).tobytes())
+        g = frame.resources["gbuffer"]
+        tex = self.run_fullscreen(frame, prog, {"gbuf_albedo": g["albedo"], "gbuf_normal": g["normal"],
+                                                "gbuf_material": g["material"], "gbuf_depth": g["depth"]})
+        frame.resources["hdr"] = tex
+        frame.resources["color"] = tex

@@ -1,0 +1,25 @@
+"""FXAA post pass on display-encoded color."""
+from __future__ import annotations
+
+from ..pipeline.settings import NUMBER, Setting, unit_interval
+from .base import FullscreenPass
+
+
+class FxaaPass(FullscreenPass):
+    """Edge-directed anti-aliasing of 'ldr'."""
+
+    name = "fxaa"
+    reads = ("ldr",)
+    writes = ("ldr",)
+    template = "post/fxaa.frag.j2"
+    SETTINGS = {"edge_threshold": Setting(NUMBER, 0.125, "relative luma contrast that counts as an edge",
+                                          check=unit_interval)}
+
+    def execute(self, frame) -> None:
+        """Anti-alias the display image."""
+        prog = self.program(frame)
+        prog["gua_edge_threshold"] = float(self.settings["edge_threshold"])
+        if "gua_resolution" in prog:
+            prog["gua_resolution"] = (float(frame.width), float(frame.height))
+        tex = self.run_fullscreen(frame, prog, {"gua_input": frame.resources["ldr"]})
+        frame.resources["ldr"] = frame.resources["color"] = tex

@@ -1,0 +1,67 @@
+"""Geometry pass: opaque fragments to the G-buffer, transparent ones to the method's storage."""
+from __future__ import annotations
+
+from .base import Pass
+
+
+class GeometryPass(Pass):
+    """Rasterizes the draw list; opaque draws first so hidden transparent fragments are culled early."""
+
+    name = "geometry"
+    reads = ("draw_list",)
+    writes = ("gbuffer", "transparent")
+
+    def __init__(self, renderer, settings):
+        super().__init__(renderer, settings)
+        self._gbuffer = None
+
+    def gbuffer(self, frame):
+        """G-buffer framebuffer (albedo, normal+roughness, emissive+metalness, depth)."""
+        size = (frame.width, frame.height)
+        if self._gbuffer is None or self._gbuffer.size != size:
+            self.release()
+            ctx = self.ctx
+            colors = [ctx.texture(size, 4, dtype="f2") for _ in range(3)]
+            depth = ctx.depth_texture(size)
+            depth.compare_func = ""  # sampled as plain depth values by later passes
+            self._gbuffer = ctx.framebuffer(color_attachments=colors, depth_attachment=depth)
+            self._depth_only = ctx.framebuffer(depth_attachment=depth)
+        return self._gbuffer
+
+    def execute(self, frame) -> None:
+        """Fill the G-buffer, then let the transparency method store the transparent fragments."""
+        mgl = self.renderer.moderngl
+        fbo = self.gbuffer(frame)
+        fbo.use()
+        fbo.depth_mask = True
+        self.ctx.disable(mgl.BLEND | mgl.CULL_FACE)
+        self.ctx.enable(mgl.DEPTH_TEST)
+        self.ctx.depth_func = "<"
+        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        frame.draw_opaque()
+        g = {"fbo": fbo, "depth_only": self._depth_only, "albedo": fbo.color_attachments[0],
+             "normal": fbo.color_attachments[1], "material": fbo.color_attachments[2],
+             "depth": fbo.depth_attachment}
+        frame.resources["gbuffer"] = g
+        frame.stats.setdefault("memory", {})["gbuffer"] = frame.pixel_count * (3 * 8 + 4)
+        method = self.renderer.method
+        has_transparency = bool(frame.transparent_draws)
+        frame.resources["transparent"] = method if has_transparency else None
+        if has_transparency:
+            method.prepare(frame)
+            method.render_transparent(frame)
+            self.ctx.memory_barrier()
+            frame.rerender = method.finish(frame)
+        else:
+            frame.stats["fragments"] = {"stored": 0}
+        self.ctx.depth_func = "<"
+
+    def release(self) -> None:
+        """Free the G-buffer."""
+        if self._gbuffer is not None:
+            for t in self._gbuffer.color_attachments:
+                t.release()
+            self._gbuffer.depth_attachment.release()
+            self._gbuffer.release()
+            self._depth_only.release()
+            self._gbuffer = None

@@ -1,0 +1,1 @@
+"""Pipeline configuration, frame state and the renderer that runs passes in order."""

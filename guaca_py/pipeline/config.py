@@ -1,0 +1,124 @@
+"""Load and validate pipeline configs (pipelines/*.yaml): ordered passes with settings."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import ConfigError
+from ..resources import builtin_pipeline
+from ..yaml_source import Located, load_yaml_file, load_yaml_text
+from .settings import Setting, positive, resolve_settings
+
+COMPULSORY = ("geometry", "light_culling", "composite")
+_TOP = {"name", "resolution", "transparency", "passes"}
+
+
+@dataclass
+class PassConfig:
+    """One pass entry: its type name and validated settings."""
+
+    name: str
+    settings: dict
+    line: int | None = None
+
+
+@dataclass
+class PipelineConfig:
+    """A validated pipeline: resolution, transparency method settings and ordered passes."""
+
+    name: str
+    resolution: tuple[int, int]
+    transparency: dict
+    passes: list[PassConfig] = field(default_factory=list)
+    source: str = "<config>"
+
+    def pass_settings(self, name: str) -> dict | None:
+        """Settings of the first pass called `name`, or None if absent."""
+        return next((p.settings for p in self.passes if p.name == name), None)
+
+
+def _size(v) -> str | None:
+    ok = isinstance(v, list) and len(v) == 2 and all(isinstance(x, int) and not isinstance(x, bool) and 0 < x <= 16384 for x in v)
+    return None if ok else "must be [width, height] with integers in 1..16384"
+
+
+def parse_pipeline(doc: Located) -> PipelineConfig:
+    """Validate a parsed pipeline document; errors cite file, line and key."""
+    from ..methods import method_class, method_ids  # late: methods import pipeline settings
+    from ..passes import PASS_TYPES
+
+    data = doc.data
+    if not isinstance(data, dict):
+        raise doc.error((), "a pipeline config is a mapping with 'passes'")
+    for key in data:
+        if key not in _TOP:
+            raise doc.error((key,), f"unknown key '{key}'", f"known keys: {', '.join(sorted(_TOP))}")
+    res = data.get("resolution", [512, 512])
+    if _size(res):
+        raise doc.error(("resolution",), _size(res))
+    # transparency: method id + generic and method-specific settings
+    tr = dict(data.get("transparency") or {})
+    if not isinstance(data.get("transparency", {}), dict):
+        raise doc.error(("transparency",), "must be a mapping like {method: presort_lf_et}")
+    mid = tr.pop("method", "presort_lf_et")
+    if mid not in method_ids():
+        raise doc.error(("transparency", "method"), f"unknown transparency method '{mid}'",
+                        f"known: {', '.join(method_ids())}")
+    schema = method_class(mid).settings_schema()
+    settings = resolve_settings(schema, tr, lambda k, r, h: doc.error(("transparency", k), r, h))
+    passes_raw = data.get("passes")
+    if not isinstance(passes_raw, list) or not passes_raw:
+        raise doc.error(("passes",), "missing or empty 'passes' list",
+                        f"a pipeline needs at least {', '.join(COMPULSORY)} in this order")
+    passes: list[PassConfig] = []
+    for i, entry in enumerate(passes_raw):
+        if isinstance(entry, str):
+            name, given = entry, {}
+        elif isinstance(entry, dict) and len(entry) == 1:
+            name, given = next(iter(entry.items()))
+            given = given or {}
+        else:
+            raise doc.error(("passes", i), "each pass is a name or a one-key mapping {name: {settings}}")
+        if name not in PASS_TYPES:
+            raise doc.error(("passes", i), f"unknown pass '{name}'", f"known passes: {', '.join(PASS_TYPES)}")
+        if not isinstance(given, dict):
+            raise doc.error(("passes", i, name), "pass settings must be a mapping")
+        st = resolve_settings(PASS_TYPES[name].SETTINGS, given,
+                              lambda k, r, h, i=i, name=name: doc.error(("passes", i, name, k), r, h))
+        passes.append(PassConfig(name, st, doc.line(("passes", i))))
+    names = [p.name for p in passes]
+    for c in COMPULSORY:
+        if c not in names:
+            raise doc.error(("passes",), f"compulsory pass '{c}' is missing",
+                            f"passes must start with {', '.join(COMPULSORY)} in this order")
+    head = names[:len(COMPULSORY)]
+    if tuple(head) != COMPULSORY:
+        bad = next(i for i, n in enumerate(head) if n != COMPULSORY[i])
+        raise doc.error(("passes", bad), f"wrong pass order: found '{head[bad]}' where '{COMPULSORY[bad]}' belongs",
+                        f"passes must start with {', '.join(COMPULSORY)} in this order, post passes after")
+    for i, n in enumerate(names[len(COMPULSORY):], len(COMPULSORY)):
+        if n in COMPULSORY:
+            raise doc.error(("passes", i), f"pass '{n}' appears twice")
+    settings["method"] = mid
+    return PipelineConfig(str(data.get("name", Path(doc.file).stem)), (res[0], res[1]), settings, passes, doc.file)
+
+
+def load_pipeline(spec: str | Path | PipelineConfig = "default") -> PipelineConfig:
+    """A PipelineConfig from a built-in name ('default', 'exact'), a YAML path, or itself."""
+    if isinstance(spec, PipelineConfig):
+        return spec
+    p = Path(spec)
+    if not p.suffix and not p.exists():
+        p = builtin_pipeline(str(spec))
+        if not p.is_file():
+            raise ConfigError(f"no built-in pipeline '{spec}'", None, None, None,
+                              "give a path to a .yaml file or one of: default, exact")
+    return parse_pipeline(load_yaml_file(p))
+
+
+def pipeline_from_text(text: str, name: str = "<string>") -> PipelineConfig:
+    """Parse a pipeline from YAML text (for embedding applications and tests)."""
+    return parse_pipeline(load_yaml_text(text, name))
+
+
+__all__ = ["PipelineConfig", "PassConfig", "load_pipeline", "pipeline_from_text", "COMPULSORY", "Setting", "positive"]

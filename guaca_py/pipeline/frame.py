@@ -1,0 +1,107 @@
+"""Per-frame state that flows through the passes, and the frame result handed back."""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Callable
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from ..scene.graph import Scene
+    from .drawlist import Draw
+
+
+def mat_bytes(m: np.ndarray) -> bytes:
+    """A float64 row-major numpy matrix as the column-major float32 bytes GL expects."""
+    return np.ascontiguousarray(np.asarray(m, dtype=np.float32).T).tobytes()
+
+
+@dataclass
+class FrameState:
+    """What one frame carries between passes: camera, draw list, named resources, stats."""
+
+    renderer: object
+    scene: "Scene"
+    width: int
+    height: int
+    draws: list["Draw"]
+    view: np.ndarray
+    projection: np.ndarray
+    resources: dict = field(default_factory=dict)
+    stats: dict = field(default_factory=dict)
+    rerender: bool = False
+
+    @property
+    def ctx(self):
+        """The moderngl context."""
+        return self.renderer.ctx
+
+    @property
+    def caps(self):
+        """Device capabilities."""
+        return self.renderer.caps
+
+    @property
+    def pixel_count(self) -> int:
+        """Pixels in the frame."""
+        return self.width * self.height
+
+    @property
+    def camera_position(self) -> np.ndarray:
+        """World-space eye position."""
+        return np.linalg.inv(self.view)[:3, 3]
+
+    @property
+    def transparent_draws(self) -> list["Draw"]:
+        """Draws whose material instance can produce alpha < 1."""
+        return [d for d in self.draws if d.transparent]
+
+    def set_frame_uniforms(self, prog) -> None:
+        """Write the shared camera uniforms a program uses."""
+        vp = self.projection @ self.view
+        values = {
+            "gua_view_matrix": mat_bytes(self.view),
+            "gua_projection_matrix": mat_bytes(self.projection),
+            "gua_inverse_view_projection": mat_bytes(np.linalg.inv(vp)),
+            "gua_camera_position": np.asarray(self.camera_position, dtype=np.float32).tobytes(),
+            "gua_resolution": np.asarray([self.width, self.height], dtype=np.float32).tobytes(),
+        }
+        for name, data in values.items():
+            if name in prog:
+                prog[name].write(data)
+
+    def draw_transparent(self, uniforms: dict | None = None, per_program: Callable | None = None) -> None:
+        """Draw every transparent draw with the method's transparent program variant."""
+        self.renderer.draw_list(self, self.transparent_draws, transparent=True,
+                                uniforms=uniforms or {}, per_program=per_program)
+
+    def draw_opaque(self) -> None:
+        """Draw every opaque draw into the currently bound G-buffer."""
+        self.renderer.draw_list(self, [d for d in self.draws if not d.transparent], transparent=False)
+
+
+@dataclass
+class FrameResult:
+    """A finished frame: display image (row 0 at the top), optional linear color, statistics."""
+
+    image: np.ndarray
+    stats: dict
+    linear: np.ndarray | None = None
+
+    def save(self, path: str | Path) -> Path:
+        """Write the image as PNG."""
+        from PIL import Image
+
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        Image.fromarray(self.image).save(path)
+        return path
+
+    def save_stats(self, path: str | Path) -> Path:
+        """Write the statistics as JSON."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(self.stats, indent=2))
+        return path

@@ -1,0 +1,198 @@
+"""The renderer: builds the pass pipeline from a config and turns scenes into frames."""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import moderngl
+import numpy as np
+
+from .context import create_context
+from .errors import ConfigError, UnsupportedMethodError
+from .gpu_resources import MeshCache, TextureCache
+from .materials import MaterialRegistry
+from .methods import method_class, method_ids
+from .passes import PASS_TYPES
+from .pipeline.config import PipelineConfig, load_pipeline
+from .pipeline.drawlist import build_draw_list
+from .pipeline.frame import FrameResult, FrameState, mat_bytes
+from .pipeline.settings import resolve_settings
+from .scene.graph import Scene
+from .shaders import ShaderLibrary, SourceMap
+
+_FIRST_RESOURCES = {"draw_list", "lights"}
+_TEXTURE_UNIT_BASE = 8  # units below are used by the passes' own inputs
+
+
+def method_settings(mid: str, base: dict, overrides: dict | None = None, source: str = "<method>") -> dict:
+    """Settings for method `mid`: keys of `base` it accepts, then `overrides` (validated)."""
+    schema = method_class(mid).settings_schema()
+    given = {k: v for k, v in base.items() if k in schema}
+    given.update(overrides or {})
+    out = resolve_settings(schema, given, lambda k, r, h: ConfigError(r, source, None, f"transparency.{k}", h))
+    out["method"] = mid
+    return out
+
+
+class Renderer:
+    """Renders Scenes through a pipeline config. Reuse one Renderer across frames."""
+
+    moderngl = moderngl
+
+    def __init__(self, pipeline: str | Path | PipelineConfig = "default", ctx=None, *,
+                 method: str | None = None, method_overrides: dict | None = None,
+                 material_paths: list[str | Path] | None = None, template_paths: list[str | Path] | None = None,
+                 disable: tuple[str, ...] = ()):
+        self.ctx, self.caps = create_context(ctx, disable)
+        self.config = load_pipeline(pipeline)
+        self.shaders = ShaderLibrary(self.ctx, template_paths)
+        self.materials = MaterialRegistry(material_paths)
+        self.meshes = MeshCache(self.ctx)
+        self.textures = TextureCache(self.ctx)
+        self._fullscreen_vaos: dict[int, object] = {}
+        self.set_method(method or self.config.transparency["method"], method_overrides)
+        self.passes = [PASS_TYPES[p.name](self, p.settings) for p in self.config.passes]
+        available = set(_FIRST_RESOURCES)
+        for p, pc in zip(self.passes, self.config.passes):
+            missing = [r for r in p.reads if r not in available]
+            if missing:
+                raise ConfigError(f"pass '{p.name}' reads {', '.join(missing)} which no earlier pass writes",
+                                  self.config.source, pc.line, "passes")
+            available |= set(p.writes)
+
+    def set_method(self, mid: str, overrides: dict | None = None) -> None:
+        """Switch the transparency method (settings shared with the config carry over)."""
+        if mid not in method_ids():
+            raise ConfigError(f"unknown transparency method '{mid}'", hint=f"known: {', '.join(method_ids())}")
+        cls = method_class(mid)
+        reason = cls.unsupported_reason(self.caps)
+        if reason:
+            raise UnsupportedMethodError(f"method '{mid}' cannot run on {self.caps.renderer}: {reason}")
+        if getattr(self, "method", None) is not None:
+            self.method.release()
+        self.method = cls(method_settings(mid, self.config.transparency, overrides, self.config.source), self.caps)
+
+    def pass_named(self, name: str):
+        """The pass instance called `name` (compulsory passes always exist)."""
+        return next(p for p in self.passes if p.name == name)
+
+    # ------------------------------------------------------------------ drawing
+    def geometry_program(self, draw, transparent: bool):
+        """Program for (triangle mesh, material, opaque|transparent method variant), compiled once."""
+        mat = draw.material
+        mvars = self.method.template_vars() if transparent else {}
+        key = ("triangle_mesh", str(mat.path), transparent, self.method.id if transparent else None,
+               tuple(sorted((k, str(v)) for k, v in mvars.items())))
+        smap = SourceMap()
+        label = f"material '{mat.name}'"
+
+        def methods(stage):
+            return "".join(smap.insert(m.source, m.file, m.first_line, f"{label} method '{m.name}'")
+                           for m in mat.methods.get(stage, []))
+
+        common = {"material_uniforms": "\n".join(u.glsl_decl() for u in mat.uniforms.values())}
+        frag = dict(common, transparent=transparent, visibility_methods=methods("visibility"),
+                    visibility_calls=[m.name for m in mat.methods["visibility"]], **mvars,
+                    method_extensions=self.method.extensions() if transparent else "",
+                    method_fragment_template=self.method.fragment_template() if transparent else "")
+        vert = dict(common, displacement_methods=methods("displacement"),
+                    displacement_calls=[m.name for m in mat.methods["displacement"]])
+        return self.shaders.program(key, {"vertex_shader": ("geometry/triangle_mesh.vert.j2", vert),
+                                          "fragment_shader": ("geometry/triangle_mesh.frag.j2", frag)},
+                                    smap, label=f"{label} ({mat.path})")
+
+    def _set_material_uniforms(self, prog, draw) -> None:
+        unit = _TEXTURE_UNIT_BASE
+        for name, spec in draw.material.uniforms.items():
+            if name not in prog:
+                continue
+            value = draw.values[name]
+            if spec.type == "sampler2D":
+                self.textures.get(value, draw.material.path.parent).use(location=unit)
+                prog[name] = unit
+                unit += 1
+            elif spec.type == "mat4":
+                prog[name].write(mat_bytes(np.asarray(value, dtype=np.float64).reshape(4, 4)))
+            else:
+                prog[name].value = value if not isinstance(value, list) else tuple(value)
+
+    def draw_list(self, frame, draws, transparent: bool, uniforms: dict | None = None, per_program=None) -> None:
+        """Draw `draws` with their (opaque or transparent) programs and the given extra uniforms."""
+        last = None
+        for d in draws:
+            prog = self.geometry_program(d, transparent)
+            if prog is not last:
+                frame.set_frame_uniforms(prog)
+                for k, v in (uniforms or {}).items():
+                    if k in prog:
+                        prog[k] = v
+                if per_program is not None:
+                    per_program(prog)
+                last = prog
+            prog["gua_model_matrix"].write(mat_bytes(d.world))
+            if "gua_normal_matrix" in prog:
+                prog["gua_normal_matrix"].write(mat_bytes(np.linalg.inv(d.world).T))
+            if "gua_draw_index" in prog:
+                prog["gua_draw_index"] = d.index
+            self._set_material_uniforms(prog, d)
+            self.meshes.vao(d.mesh, prog).render(moderngl.TRIANGLES)
+
+    def fullscreen(self, prog) -> None:
+        """Draw one screen-covering triangle with `prog`."""
+        vao = self._fullscreen_vaos.get(prog.glo)
+        if vao is None:
+            vao = self._fullscreen_vaos[prog.glo] = self.ctx.vertex_array(prog, [])
+        vao.render(moderngl.TRIANGLES, vertices=3)
+
+    # ------------------------------------------------------------------ frames
+    def _timed(self, fn) -> tuple[float, str]:
+        if self.caps.gpu_timers:
+            q = self.ctx.query(time=True)
+            with q:
+                fn()
+            return q.elapsed / 1e6, "gpu"
+        self.ctx.finish()
+        t0 = time.perf_counter()
+        fn()
+        self.ctx.finish()
+        return (time.perf_counter() - t0) * 1e3, "wall"
+
+    def render(self, scene: Scene, width: int | None = None, height: int | None = None) -> FrameResult:
+        """Render one frame of `scene` and read it back."""
+        w, h = width or self.config.resolution[0], height or self.config.resolution[1]
+        cam = scene.camera
+        draws = build_draw_list(scene, self.materials)
+        frame = FrameState(self, scene, w, h, draws, cam.view_matrix(), cam.projection_matrix(w / h))
+        frame.stats.update({"method": self.method.id, "insertion_path": self.caps.insertion_path,
+                            "device": self.caps.renderer, "resolution": [w, h], "draws": len(draws),
+                            "transparent_draws": len(frame.transparent_draws), "passes": {}, "regrown": 0})
+        t0 = time.perf_counter()
+        for p in self.passes:
+            for attempt in range(1 + 16):
+                ms, kind = self._timed(lambda p=p: p.execute(frame))
+                if not frame.rerender:
+                    break
+                frame.rerender = False
+                frame.stats["regrown"] += 1
+            frame.stats["passes"][p.name] = {"ms": round(ms, 4)}
+            frame.stats["timer"] = kind
+        frame.stats.setdefault("memory", {}).update(self.method.memory() if frame.transparent_draws else {})
+        frame.stats["frame_wall_ms"] = round((time.perf_counter() - t0) * 1e3, 3)
+        return self._read_back(frame)
+
+    def _read_back(self, frame) -> FrameResult:
+        tex = frame.resources["color"]
+        if tex.dtype == "f4":
+            lin = np.frombuffer(tex.read(), dtype=np.float32).reshape(frame.height, frame.width, 4)[::-1, :, :3]
+            img = np.clip(np.rint(np.clip(lin, 0.0, 1.0) * 255.0), 0, 255).astype(np.uint8)
+            return FrameResult(np.ascontiguousarray(img), frame.stats, np.ascontiguousarray(lin))
+        img = np.frombuffer(tex.read(), dtype=np.uint8).reshape(frame.height, frame.width, 4)[::-1, :, :3]
+        return FrameResult(np.ascontiguousarray(img), frame.stats)
+
+    def release(self) -> None:
+        """Free every GPU resource the renderer holds."""
+        for p in self.passes:
+            p.release()
+        self.method.release()
+        self.meshes.release()
+        self.textures.release()

@@ -1,0 +1,103 @@
+"""Render GLSL from Jinja2 templates; map compiler messages back to material files."""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import jinja2
+
+from ..errors import ShaderCompileError
+from ..resources import builtin_dir
+
+_RESTORE = "__GUA_LINE_RESTORE__"
+# Mesa: "0:12(5): error: ..."   NVIDIA: "0(12) : error C1008: ..."
+_MSG = re.compile(r"^\s*(?:ERROR:\s*)?(\d+)[:(](\d+)\)?(?:\(\d+\))?\s*:?\s*(.*)$")
+
+
+@dataclass
+class SourceMap:
+    """Maps GLSL `#line` source-string numbers to (file, first line) of inserted code."""
+
+    origins: dict[int, tuple[Path, int, str]] = field(default_factory=dict)
+
+    def insert(self, code: str, file: Path, first_line: int, label: str) -> str:
+        """Wrap `code` in #line directives so compiler messages cite `file` lines."""
+        sid = len(self.origins) + 1
+        self.origins[sid] = (file, first_line, label)
+        return f"#line {first_line} {sid}\n{code}\n#line {_RESTORE} 0\n"
+
+
+def finalize_lines(src: str) -> str:
+    """Replace the restore markers with the real line numbers of the generated text."""
+    out = src.split("\n")
+    for i, line in enumerate(out):
+        if _RESTORE in line:
+            out[i] = line.replace(_RESTORE, str(i + 2))  # #line N names the line after it
+    return "\n".join(out)
+
+
+def explain_compile_error(message: str, sources: dict[str, str], smap: SourceMap, program: str) -> str:
+    """Turn a compiler log into lines citing material files or generated template lines."""
+    lines_out = []
+    stage_src = None
+    for raw in message.splitlines():
+        for stage, src in sources.items():
+            if raw.strip().startswith(stage):
+                stage_src = src
+        m = _MSG.match(raw)
+        if not m:
+            continue
+        sid, line, msg = int(m.group(1)), int(m.group(2)), m.group(3).strip()
+        if sid in smap.origins:
+            file, _first, label = smap.origins[sid]
+            lines_out.append(f"{file}:{line}: in {label}: {msg}")
+        else:
+            ctx = ""
+            if stage_src is not None:
+                src_lines = stage_src.split("\n")
+                if 0 < line <= len(src_lines):
+                    ctx = f"  | {src_lines[line - 1].strip()}"
+            lines_out.append(f"<generated {program}>:{line}: {msg}{ctx}")
+    if not lines_out:
+        lines_out.append(message.strip())
+    return "\n".join(lines_out)
+
+
+class ShaderLibrary:
+    """Jinja2 environment over the built-in templates (user directories first) plus compilation."""
+
+    def __init__(self, ctx, extra_dirs: list[str | Path] | None = None):
+        self.ctx = ctx
+        dirs = [str(d) for d in (extra_dirs or [])] + [str(builtin_dir("shader_templates"))]
+        self.env = jinja2.Environment(loader=jinja2.FileSystemLoader(dirs), undefined=jinja2.StrictUndefined,
+                                      keep_trailing_newline=True, trim_blocks=True, lstrip_blocks=True)
+        self._programs: dict = {}
+
+    def render(self, template: str, **variables) -> str:
+        """Render one template to GLSL text (with #line markers resolved)."""
+        return finalize_lines(self.env.get_template(template).render(**variables))
+
+    def program(self, key, stages: dict[str, tuple[str, dict]], smap: SourceMap | None = None,
+                label: str = "program"):
+        """Compile (once per key) a program from {stage: (template, variables)}; stage names are moderngl's."""
+        if key in self._programs:
+            return self._programs[key]
+        smap = smap or SourceMap()
+        sources = {stage: self.render(tpl, **vars_) for stage, (tpl, vars_) in stages.items()}
+        try:
+            if "compute_shader" in sources:
+                prog = self.ctx.compute_shader(sources["compute_shader"])
+            else:
+                prog = self.ctx.program(**sources)
+        except Exception as exc:  # moderngl raises moderngl.Error with the driver's log
+            raise ShaderCompileError(f"GLSL compilation of {label} failed:\n"
+                                     + explain_compile_error(str(exc), sources, smap, label)) from exc
+        prog._gua_sources = sources
+        self._programs[key] = prog
+        return prog
+
+    def compute(self, template: str, **variables):
+        """Compile (once per template+variables) a compute shader."""
+        key = (template, tuple(sorted((k, str(v)) for k, v in variables.items())))
+        return self.program(key, {"compute_shader": (template, variables)}, label=template)

@@ -1,0 +1,76 @@
+"""YAML loading that keeps line numbers, so config errors can cite file:line."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from .errors import ConfigError
+
+
+class Located:
+    """Parsed YAML value plus the line of every mapping key and sequence item."""
+
+    def __init__(self, data: Any, lines: dict[tuple, int], file: str):
+        self.data, self.lines, self.file = data, lines, file
+
+    def line(self, path: tuple) -> int | None:
+        """Line of the entry at key path `path` (falls back to the nearest parent)."""
+        while path:
+            if path in self.lines:
+                return self.lines[path]
+            path = path[:-1]
+        return self.lines.get((), 1)
+
+    def error(self, path: tuple, reason: str, hint: str | None = None) -> ConfigError:
+        """A ConfigError citing the file, the line and the dotted key of `path`."""
+        return ConfigError(reason, self.file, self.line(path), key_name(path), hint)
+
+
+def key_name(path: tuple) -> str:
+    """Render a key path like ('passes', 2, 'mode') as 'passes[2].mode'."""
+    out = ""
+    for p in path:
+        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
+    return out
+
+
+def _convert(node: yaml.Node, path: tuple, lines: dict) -> Any:
+    lines.setdefault(path, node.start_mark.line + 1)
+    if isinstance(node, yaml.MappingNode):
+        out = {}
+        for k, v in node.value:
+            key = k.value
+            lines[path + (key,)] = k.start_mark.line + 1
+            out[key] = _convert(v, path + (key,), lines)
+        return out
+    if isinstance(node, yaml.SequenceNode):
+        return [_convert(v, path + (i,), lines) for i, v in enumerate(node.value)]
+    if node.tag == "tag:yaml.org,2002:str":
+        return node.value
+    if node.tag == "tag:yaml.org,2002:bool" and node.value.lower() not in ("true", "false"):
+        return node.value  # YAML 1.2 booleans only: 'off'/'on'/'yes'/'no' stay strings (mode: off)
+    return yaml.safe_load(yaml.serialize(node))
+
+
+def load_yaml_text(text: str, file: str) -> Located:
+    """Parse YAML text; syntax errors become ConfigError with the line of the problem."""
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        line = mark.line + 1 if mark is not None else None
+        raise ConfigError(f"invalid YAML: {getattr(exc, 'problem', exc)}", file, line,
+                          hint="check indentation and brackets") from exc
+    lines: dict[tuple, int] = {}
+    data = _convert(root, (), lines) if root is not None else {}
+    return Located(data, lines, file)
+
+
+def load_yaml_file(path: str | Path) -> Located:
+    """Read and parse a YAML file (missing file → ConfigError)."""
+    p = Path(path)
+    if not p.is_file():
+        raise ConfigError("file not found", p, hint="check the path")
+    return load_yaml_text(p.read_text(encoding="utf-8"), str(p))
