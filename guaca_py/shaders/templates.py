@@ -10,31 +10,40 @@ import jinja2
 from ..errors import ShaderCompileError
 from ..resources import builtin_dir
 
-_RESTORE = "__GUA_LINE_RESTORE__"
+_BEGIN, _END = "// @gua-source-begin ", "// @gua-source-end"
 # Mesa: "0:12(5): error: ..."   NVIDIA: "0(12) : error C1008: ..."
 _MSG = re.compile(r"^\s*(?:ERROR:\s*)?(\d+)[:(](\d+)\)?(?:\(\d+\))?\s*:?\s*(.*)$")
 
 
 @dataclass
 class SourceMap:
-    """Maps GLSL `#line` source-string numbers to (file, first line) of inserted code."""
+    """Remembers where inserted code came from: source id → (file, first line, label).
+
+    Drivers disagree on `#line` source-string numbers (Mesa drops them), so inserted code is
+    bracketed by comment markers instead and generated line numbers are mapped back here.
+    """
 
     origins: dict[int, tuple[Path, int, str]] = field(default_factory=dict)
 
     def insert(self, code: str, file: Path, first_line: int, label: str) -> str:
-        """Wrap `code` in #line directives so compiler messages cite `file` lines."""
+        """Bracket `code` with markers so compiler messages can cite `file` lines."""
         sid = len(self.origins) + 1
         self.origins[sid] = (file, first_line, label)
-        return f"#line {first_line} {sid}\n{code}\n#line {_RESTORE} 0\n"
+        return f"{_BEGIN}{sid}\n{code}\n{_END}\n"
 
-
-def finalize_lines(src: str) -> str:
-    """Replace the restore markers with the real line numbers of the generated text."""
-    out = src.split("\n")
-    for i, line in enumerate(out):
-        if _RESTORE in line:
-            out[i] = line.replace(_RESTORE, str(i + 2))  # #line N names the line after it
-    return "\n".join(out)
+    def locate(self, src: str, line: int) -> tuple[Path, int, str] | None:
+        """(file, line, label) of generated line `line` when it lies in inserted code."""
+        lines = src.split("\n")
+        sid, start = None, 0
+        for i, text in enumerate(lines[:line], 1):
+            if text.startswith(_BEGIN):
+                sid, start = int(text[len(_BEGIN):]), i
+            elif text.startswith(_END):
+                sid = None
+        if sid is None or sid not in self.origins or line == start:
+            return None
+        file, first, label = self.origins[sid]
+        return file, first + (line - start - 1), label
 
 
 def explain_compile_error(message: str, sources: dict[str, str], smap: SourceMap, program: str) -> str:
@@ -48,10 +57,13 @@ def explain_compile_error(message: str, sources: dict[str, str], smap: SourceMap
         m = _MSG.match(raw)
         if not m:
             continue
-        sid, line, msg = int(m.group(1)), int(m.group(2)), m.group(3).strip()
-        if sid in smap.origins:
-            file, _first, label = smap.origins[sid]
-            lines_out.append(f"{file}:{line}: in {label}: {msg}")
+        line, msg = int(m.group(2)), m.group(3).strip()
+        if "error" not in msg.lower():
+            continue  # warnings about the generated interface are noise here
+        origin = smap.locate(stage_src, line) if stage_src is not None else None
+        if origin is not None:
+            file, fline, label = origin
+            lines_out.append(f"{file}:{fline}: in {label}: {msg}")
         else:
             ctx = ""
             if stage_src is not None:
@@ -75,8 +87,8 @@ class ShaderLibrary:
         self._programs: dict = {}
 
     def render(self, template: str, **variables) -> str:
-        """Render one template to GLSL text (with #line markers resolved)."""
-        return finalize_lines(self.env.get_template(template).render(**variables))
+        """Render one template to GLSL text."""
+        return self.env.get_template(template).render(**variables)
 
     def program(self, key, stages: dict[str, tuple[str, dict]], smap: SourceMap | None = None,
                 label: str = "program"):

@@ -1,0 +1,125 @@
+"""Command line: `guaca render`, `guaca info`, `guaca methods`."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from .errors import GuacaError
+
+
+def _parse_value(text: str):
+    import yaml
+
+    return yaml.safe_load(text)
+
+
+def _cmd_render(args) -> int:
+    from .renderer import Renderer
+    from .scene.loader import demo_scene, load_scene
+
+    scene = load_scene(args.scene) if args.scene else demo_scene()
+    overrides = {}
+    for item in args.set or []:
+        if "=" not in item:
+            raise GuacaError(f"--set expects key=value, got {item!r}")
+        k, v = item.split("=", 1)
+        overrides[k] = _parse_value(v)
+    renderer = Renderer(args.pipeline, method=args.method, method_overrides=overrides,
+                        material_paths=args.materials)
+    frame = renderer.render(scene, args.width, args.height)
+    out = frame.save(args.out)
+    s = frame.stats
+    print(f"rendered {out} ({s['resolution'][0]}x{s['resolution'][1]}) on {s['device']}")
+    print(f"method {s['method']} ({s['insertion_path']} insertion), timer: {s['timer']}")
+    for name, p in s["passes"].items():
+        print(f"  {name:<14} {p['ms']:10.3f} ms")
+    fr = s.get("fragments", {})
+    print("fragments: " + ", ".join(f"{k} {v}" for k, v in fr.items()))
+    mem = s.get("memory", {})
+    print("memory: " + ", ".join(f"{k} {v / 1024:.1f} KiB" for k, v in mem.items() if not k.endswith("node_bytes")))
+    if s.get("regrown"):
+        print(f"A-buffer pool grown and frame re-rendered {s['regrown']} time(s)")
+    for w in s.get("warnings", []):
+        print(f"WARNING: {w}", file=sys.stderr)
+    if args.stats:
+        frame.save_stats(args.stats)
+        print(f"stats written to {args.stats}")
+    renderer.release()
+    return 0
+
+
+def _cmd_info(args) -> int:
+    from .context import create_context
+
+    _, caps = create_context()
+    d = caps.as_dict()
+    if args.json:
+        print(json.dumps(dict(d, insertion_path=caps.insertion_path), indent=2))
+        return 0
+    print(f"device:    {caps.renderer}")
+    print(f"vendor:    {caps.vendor}")
+    print(f"OpenGL:    {caps.version}")
+    for k in ("atomic_int64", "fragment_interlock", "conservative_raster", "gpu_timers"):
+        print(f"{k + ':':<22}{'yes' if d[k] else 'no'}")
+    print(f"A-buffer insertion path: {caps.insertion_path} "
+          f"({'64-bit atomicMax on (depth, pointer)' if caps.insertion_path == '64bit' else '32-bit CAS on immutable nodes'})")
+    return 0
+
+
+def _cmd_methods(args) -> int:
+    from .context import create_context
+    from .methods import method_class, method_ids
+
+    _, caps = create_context()
+    rows = []
+    for mid in method_ids():
+        cls = method_class(mid)
+        reason = cls.unsupported_reason(caps)
+        rows.append((mid, "exact" if cls.exact else "approximate", cls.geometry_passes,
+                     "yes" if reason is None else f"no: {reason}", cls.summary))
+    print(f"{'id':<26}{'kind':<13}{'geometry passes':<17}{'runs here':<12}summary")
+    for r in rows:
+        print(f"{r[0]:<26}{r[1]:<13}{r[2]:<17}{r[3]:<12}{r[4]}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the `guaca` command."""
+    p = argparse.ArgumentParser(prog="guaca", description="guaca_py: deferred shading with exact OIT")
+    sub = p.add_subparsers(dest="command", required=True)
+    r = sub.add_parser("render", help="render a scene file (default: the built-in demo) to PNG")
+    r.add_argument("scene", nargs="?", help="scene YAML or mesh file (default: built-in demo)")
+    r.add_argument("--pipeline", default="default", help="pipeline YAML or built-in name (default, exact)")
+    r.add_argument("--method", help="transparency method id (see `guaca methods`)")
+    r.add_argument("--set", action="append", metavar="KEY=VALUE", help="transparency setting, e.g. --set budget_mb=1")
+    r.add_argument("--width", type=int)
+    r.add_argument("--height", type=int)
+    r.add_argument("--out", default="out.png", help="output PNG (default out.png)")
+    r.add_argument("--stats", help="write per-pass times, counters and memory as JSON")
+    r.add_argument("--materials", action="append", help="extra directory of material descriptions")
+    r.set_defaults(fn=_cmd_render)
+    i = sub.add_parser("info", help="print the OpenGL device and its capabilities")
+    i.add_argument("--json", action="store_true")
+    i.set_defaults(fn=_cmd_info)
+    m = sub.add_parser("methods", help="list transparency methods and whether this device runs them")
+    m.set_defaults(fn=_cmd_methods)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point; returns the exit status (2 for bad input or device problems)."""
+    args = build_parser().parse_args(argv)
+    try:
+        return args.fn(args)
+    except GuacaError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except FileNotFoundError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

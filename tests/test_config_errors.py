@@ -1,0 +1,128 @@
+"""Bad pipeline configs and materials are rejected with file, line, key and reason."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from guaca_py import ConfigError, ShaderCompileError, load_pipeline, pipeline_from_text
+from guaca_py.materials import load_material
+
+GOOD = """\
+resolution: [64, 64]
+transparency: {method: presort_lf_et, threshold: 0.98}
+passes:
+  - geometry: {}
+  - light_culling: {mode: off}
+  - composite: {}
+  - tone_mapping: {exposure: 1.5}
+"""
+
+
+def test_builtin_pipelines_load():
+    for name in ("default", "exact"):
+        cfg = load_pipeline(name)
+        assert [p.name for p in cfg.passes][:3] == ["geometry", "light_culling", "composite"]
+    assert load_pipeline("exact").pass_settings("tone_mapping") is None
+
+
+def test_good_pipeline_parses_settings():
+    cfg = pipeline_from_text(GOOD, "p.yaml")
+    assert cfg.resolution == (64, 64)
+    assert cfg.pass_settings("tone_mapping")["exposure"] == 1.5
+    assert cfg.pass_settings("light_culling")["mode"] == "off"  # YAML 'off' stays a word
+
+
+@pytest.mark.parametrize("text,line,needle", [
+    ("passes: [geometry, light_culling\n", 2, "invalid YAML"),
+    (GOOD.replace("tone_mapping", "bloom"), 7, "unknown pass 'bloom'"),
+    (GOOD.replace("  - geometry: {}\n  - light_culling: {mode: off}\n",
+                  "  - light_culling: {mode: off}\n  - geometry: {}\n"), 4, "wrong pass order"),
+    (GOOD.replace("  - composite: {}\n", ""), 3, "compulsory pass 'composite' is missing"),
+    (GOOD.replace("exposure: 1.5", "exposure: -2"), 7, "must be > 0"),
+    (GOOD.replace("exposure: 1.5", "exposre: 1"), 7, "unknown setting 'exposre'"),
+    (GOOD.replace("threshold: 0.98", "threshold: 1.5"), 2, "must be in (0, 1]"),
+    (GOOD.replace("presort_lf_et", "magic_oit"), 2, "unknown transparency method 'magic_oit'"),
+    ("colour: red\n" + GOOD, 1, "unknown key 'colour'"),
+    (GOOD.replace("[64, 64]", "[64]"), 1, "[width, height]"),
+])
+def test_bad_pipeline_rejected_with_location(text, line, needle):
+    with pytest.raises(ConfigError) as err:
+        pipeline_from_text(text, "bad.yaml")
+    msg = str(err.value)
+    assert needle in msg
+    assert err.value.file == "bad.yaml" and err.value.line == line, msg
+
+
+def _material(tmp_path, data, name="m.json"):
+    p = tmp_path / name
+    p.write_text(json.dumps(data, indent=2) if not isinstance(data, str) else data)
+    return p
+
+
+def test_material_json_syntax_error_has_line(tmp_path):
+    p = _material(tmp_path, '{\n  "name": "x",\n  "uniforms": {,}\n}')
+    with pytest.raises(ConfigError) as err:
+        load_material(p)
+    assert err.value.line == 3 and "invalid JSON" in str(err.value)
+
+
+def test_material_bad_uniform_type(tmp_path):
+    p = _material(tmp_path, {"name": "x", "uniforms": {"c": {"type": "vec5"}}})
+    with pytest.raises(ConfigError, match="type"):
+        load_material(p)
+
+
+def test_material_default_of_wrong_shape(tmp_path):
+    p = _material(tmp_path, {"name": "x", "uniforms": {"c": {"type": "vec3", "default": [1, 2]}}})
+    with pytest.raises(ConfigError, match=r"vec3 \(3 numbers\)"):
+        load_material(p)
+
+
+def test_material_method_must_define_function(tmp_path):
+    p = _material(tmp_path, {"name": "x", "visibility": [{"name": "m", "source": "void other() {}"}]})
+    with pytest.raises(ConfigError, match="void m"):
+        load_material(p)
+
+
+def test_instance_uniform_type_checked():
+    from guaca_py.materials import MaterialRegistry
+
+    mat = MaterialRegistry().get("unlit")
+    with pytest.raises(ConfigError, match="expected float"):
+        mat.resolve_values({"alpha": "half"}, ("scene.yaml", 12))
+    with pytest.raises(ConfigError, match="no uniform 'colour'") as err:
+        mat.resolve_values({"colour": [1, 0, 0]}, ("scene.yaml", 12))
+    assert err.value.line == 12
+
+
+def test_transparency_decided_from_material():
+    from guaca_py.materials import MaterialRegistry
+
+    reg = MaterialRegistry()
+    unlit, pbr, glass = reg.get("unlit"), reg.get("pbr"), reg.get("fresnel_glass")
+    assert not unlit.is_transparent({"alpha": 1.0})
+    assert unlit.is_transparent({"alpha": 0.5})
+    assert not pbr.is_transparent(pbr.resolve_values({}))
+    assert glass.is_transparent(glass.resolve_values({}))
+
+
+def test_glsl_error_cites_material_file_and_line(tmp_path, renderer_factory):
+    from conftest import quad_node, simple_scene
+
+    _material(tmp_path, {"name": "broken", "uniforms": {"alpha": {"type": "float", "default": 0.5},
+                                                        "color": {"type": "vec3"}},
+                         "visibility": [{"name": "broken", "source": [
+                             "void broken() {",
+                             "    gua_alpha = alpha;",
+                             "    gua_color = vec3(undefined_thing);",
+                             "}"]}]}, "broken.json")
+    r = renderer_factory("exact", material_paths=[tmp_path])
+    scene = simple_scene([quad_node("q", 0, (1, 0, 0), 0.5, material="broken")])
+    with pytest.raises(ShaderCompileError) as err:
+        r.render(scene, 32, 32)
+    msg = str(err.value)
+    src_line = next(i for i, l in enumerate((tmp_path / "broken.json").read_text().splitlines(), 1)
+                    if "undefined_thing" in l)
+    assert f"broken.json:{src_line}:" in msg, msg
+    assert "undefined_thing" in msg
