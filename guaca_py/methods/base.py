@@ -16,6 +16,14 @@ class TransparencyMethod:
     Life cycle per frame: prepare() → render_transparent() (draws the transparent draw list
     one or more times) → finish() (reads counters; may ask for a re-render) → the composite pass
     includes resolve_template() and calls bind_composite().
+
+    Methods that shade while they draw (peeling: shade each peeled layer, then peel the next)
+    set `geometry_in_composite`: their prepare/render_transparent/finish then run at the start
+    of the composite pass, when lights are culled (frame.bind_lights(prog) binds them and
+    frame.shading_vars() gives the template variables of shading/lighting.glsl.j2).
+
+    Texture units: 0-3 G-buffer inputs of the composite, 4-7 the method's own composite
+    inputs, 8+ material textures. SSBO bindings: 0-2 method storage, 3 lights, 4-7 method.
     """
 
     id: ClassVar[str] = ""
@@ -23,6 +31,7 @@ class TransparencyMethod:
     geometry_passes: ClassVar[str] = "1"
     summary: ClassVar[str] = ""
     SETTINGS: ClassVar[dict[str, Setting]] = {}
+    geometry_in_composite: ClassVar[bool] = False
 
     def __init__(self, settings: dict, caps: "Capabilities"):
         self.settings = settings

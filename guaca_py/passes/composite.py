@@ -18,7 +18,7 @@ class CompositePass(FullscreenPass):
         """Composite program for this method, light lookup and transparency presence."""
         r = self.renderer
         method = frame.resources.get("transparent")
-        lights = r.pass_named("light_culling").template_vars()
+        lights = frame.shading_vars()
         tvars = dict(has_transparency=method is not None, **lights,
                      method_extensions=method.extensions() if method else "",
                      method_resolve_template=method.resolve_template() if method else "",
@@ -30,9 +30,11 @@ class CompositePass(FullscreenPass):
 
     def execute(self, frame) -> None:
         """Shade every pixel; writes frame.resources['hdr']."""
+        method = frame.resources.get("transparent")
+        if method is not None and method.geometry_in_composite:
+            self._method_geometry(frame, method)
         prog = self.program(frame)
         frame.set_frame_uniforms(prog)
-        method = frame.resources.get("transparent")
         self.renderer.pass_named("light_culling").bind(frame, prog)
         if method is not None:
             method.bind_composite(frame, prog)
@@ -44,3 +46,13 @@ class CompositePass(FullscreenPass):
                                                 "gbuf_material": g["material"], "gbuf_depth": g["depth"]})
         frame.resources["hdr"] = tex
         frame.resources["color"] = tex
+
+    def _method_geometry(self, frame, method) -> None:
+        """Methods that shade while drawing run their geometry passes here, after light culling."""
+        for _ in range(1 + 16):
+            method.prepare(frame)
+            method.render_transparent(frame)
+            self.ctx.memory_barrier()
+            if not method.finish(frame):
+                break
+            frame.stats["regrown"] = frame.stats.get("regrown", 0) + 1

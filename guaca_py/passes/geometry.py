@@ -47,12 +47,12 @@ class GeometryPass(Pass):
         method = self.renderer.method
         has_transparency = bool(frame.transparent_draws)
         frame.resources["transparent"] = method if has_transparency else None
-        if has_transparency:
+        if has_transparency and not method.geometry_in_composite:
             method.prepare(frame)
             method.render_transparent(frame)
             self.ctx.memory_barrier()
             frame.rerender = method.finish(frame)
-        else:
+        elif not has_transparency:
             frame.stats["fragments"] = {"stored": 0}
         self.ctx.depth_func = "<"
 

@@ -72,6 +72,14 @@ class FrameState:
             if name in prog:
                 prog[name].write(data)
 
+    def bind_lights(self, prog) -> None:
+        """Bind the culled lights (and light grid) for a program that includes shading/lighting."""
+        self.renderer.pass_named("light_culling").bind(self, prog)
+
+    def shading_vars(self) -> dict:
+        """Template variables shading/lighting.glsl.j2 needs (light lookup mode)."""
+        return self.renderer.pass_named("light_culling").template_vars()
+
     def draw_transparent(self, uniforms: dict | None = None, per_program: Callable | None = None) -> None:
         """Draw every transparent draw with the method's transparent program variant."""
         self.renderer.draw_list(self, self.transparent_draws, transparent=True,
