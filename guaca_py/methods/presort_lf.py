@@ -42,6 +42,7 @@ class PreSortLF(TransparencyMethod):
         self._pixels = 0
         self.capacity = 0   # nodes in the pool, node 0 included
         self.regrown = 0
+        self._want = 0      # pool size requested for the next prepare()
         self._last = {}
 
     # ------------------------------------------------------------------ storage
@@ -61,8 +62,12 @@ class PreSortLF(TransparencyMethod):
 
     def prepare(self, frame) -> None:
         """Size the pool, clear list heads, counters and the saturation depth."""
-        cap = self.capacity if (self._pixels == frame.pixel_count and self.capacity) else \
-            self._initial_capacity(frame.pixel_count)
+        if self._want:
+            cap, self._want = self._want, 0
+        elif self._pixels == frame.pixel_count and self.capacity:
+            cap = self.capacity
+        else:
+            cap = self._initial_capacity(frame.pixel_count)
         self._alloc(frame.ctx, frame.pixel_count, cap, (frame.width, frame.height))
         self._counters.write(np.array([1] + [0] * (len(COUNTERS) - 1), dtype=np.uint32).tobytes())
         clear = frame.renderer.shaders.compute("abuffer/clear.comp.j2")
@@ -123,12 +128,8 @@ class PreSortLF(TransparencyMethod):
         return False
 
     def capacity_request(self, nodes: int) -> None:
-        """Resize the pool at the next prepare()."""
-        if self._links is not None:
-            self._links.release()
-            self._nodes.release()
-            self._links = None
-        self.capacity = nodes
+        """Resize the pool at the next prepare() (the current frame keeps reading this one)."""
+        self._want = nodes
 
     # ------------------------------------------------------------------ shaders
     def fragment_template(self) -> str:
