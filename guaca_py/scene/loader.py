@@ -1,0 +1,431 @@
+"""Scene files: YAML text to a Scene, where every error names file, line and key.
+
+Scene file format
+-----------------
+
+A scene file is a YAML mapping with four optional top-level keys::
+
+    camera:                       # defaults shown
+      position: [0, 1, 5]
+      target: [0, 0, 0]
+      up: [0, 1, 0]
+      fov_y: 60                   # vertical field of view in degrees, 0 < fov_y < 180
+      near: 0.1                   # 0 < near < far
+      far: 100
+    background: [0.1, 0.1, 0.1]   # linear RGB clear colour
+    lights:
+      - {type: point, position: [2, 3, 2], color: [1, 1, 1], intensity: 20, radius: 10}
+      - {type: spot, position: [0, 4, 0], direction: [0, -1, 0], color: [1, 0.9, 0.8],
+         intensity: 30, radius: 12, inner_angle_deg: 15, outer_angle_deg: 25}
+      - {type: directional, direction: [-1, -1, -0.5], color: [0.4, 0.4, 0.5], intensity: 1}
+    nodes:
+      - name: pane
+        mesh: {primitive: quad, size: [2, 2]}       # or {file: models/bunny.obj}
+        transform: {translation: [0, 0, 0], rotation_deg: [0, 30, 0], scale: [1, 1, 1]}
+        material: {description: unlit, uniforms: {color: [1, 0, 0], alpha: 0.5}}
+        children: []                                # nodes, same format, relative to this one
+
+Lights
+    ``type`` is ``point`` (the default), ``spot`` or ``directional``. Every light takes
+    ``color`` (RGB, >= 0, default [1, 1, 1]) and ``intensity`` (>= 0, default 1). Point and
+    spot lights take ``position`` and ``radius`` (range, > 0, default 10); spot and
+    directional lights take ``direction`` (where the light travels; normalised on load);
+    spot lights take the cone half-angles ``inner_angle_deg`` <= ``outer_angle_deg`` < 90
+    (defaults 20 and 30). A key that does not apply to the light's type is an error.
+
+Nodes
+    All node keys are optional; a node without ``mesh`` is a group. ``name`` defaults to
+    the node's key path (e.g. ``nodes[1].children[0]``). ``transform`` applies scale, then
+    rotation about X, then Y, then Z (degrees), then translation; ``scale`` may be one
+    number. Children inherit their parent's transform.
+
+Meshes
+    ``{primitive: KIND, ...params}`` builds a procedural mesh: ``quad`` (size [w, h], XY plane
+    facing +Z), ``plane`` (size [w, d], subdivisions; XZ plane facing +Y), ``box``
+    (size [x, y, z]), ``sphere`` (radius, segments, rings), ``cylinder`` (radius, height,
+    segments, capped; along Y). ``{file: PATH}`` loads OBJ, PLY, STL, GLB or glTF through
+    trimesh. Identical meshes are loaded once and shared between nodes.
+
+Materials
+    ``{description: NAME, uniforms: {...}}`` or just ``NAME``. Names and uniforms are checked
+    by the renderer, not here. Uniform numbers become floats, lists become tuples of floats,
+    and strings ending in .png/.jpg/.jpeg are texture paths, stored as absolute paths.
+
+Relative paths (mesh files, textures) resolve against the scene file's directory.
+Each MaterialInstance gets ``source = (file, line)`` (line of its ``material`` key) and
+``uniform_lines = {name: line}``; each Node gets ``source = (file, line)``, so later
+errors can cite the scene file.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from ..errors import ConfigError
+from .graph import LIGHT_TYPES, Camera, Light, MaterialInstance, MeshData, Node, Scene, Transform
+from .mesh_io import load_mesh_file
+from .primitives import PRIMITIVE_KINDS, make_primitive
+
+TOP_KEYS = ("camera", "background", "lights", "nodes")
+CAMERA_KEYS = ("position", "target", "up", "fov_y", "near", "far")
+NODE_KEYS = ("name", "mesh", "transform", "material", "children")
+TRANSFORM_KEYS = ("translation", "rotation_deg", "scale")
+MATERIAL_KEYS = ("description", "uniforms")
+LIGHT_KEYS = {
+    "point": ("type", "position", "color", "intensity", "radius"),
+    "spot": ("type", "position", "direction", "color", "intensity", "radius",
+             "inner_angle_deg", "outer_angle_deg"),
+    "directional": ("type", "direction", "color", "intensity"),
+}
+TEXTURE_SUFFIXES = (".png", ".jpg", ".jpeg")
+
+_TAG = "tag:yaml.org,2002:"
+
+
+@dataclass(frozen=True)
+class _At:
+    """A YAML value with its key path and the line to cite (its key's line for mapping values)."""
+
+    node: yaml.Node
+    key: str
+    line: int
+
+
+def _child_key(parent: str, name: str | int) -> str:
+    """Join key paths: ('nodes', 2) -> 'nodes[2]', ('nodes[2]', 'mesh') -> 'nodes[2].mesh'."""
+    if isinstance(name, int):
+        return f"{parent}[{name}]"
+    return f"{parent}.{name}" if parent else name
+
+
+def _kind(node: yaml.Node) -> str:
+    """Human word for a YAML node's type, for 'expected X, got Y' messages."""
+    if isinstance(node, yaml.MappingNode):
+        return "a mapping"
+    if isinstance(node, yaml.SequenceNode):
+        return f"a list of {len(node.value)}"
+    short = node.tag.rsplit(":", 1)[-1]
+    return "nothing (null)" if short == "null" else f"{short} {node.value!r}"
+
+
+class _Reader:
+    """Turns composed YAML nodes into scene objects, keeping file/line for every error."""
+
+    def __init__(self, file: str, base_dir: Path):
+        self.file, self.base_dir = file, base_dir
+        self._construct = yaml.constructor.SafeConstructor()
+        self._meshes: dict[Any, MeshData] = {}          # shared so identical meshes upload once
+
+    # ---- generic helpers ---------------------------------------------------------------
+
+    def error(self, at: _At, reason: str, hint: str | None = None) -> ConfigError:
+        """ConfigError citing this scene file, the value's line and key path."""
+        return ConfigError(reason, self.file, at.line, at.key or None, hint)
+
+    def mapping(self, at: _At, allowed: tuple[str, ...], what: str) -> dict[str, _At]:
+        """Entries of a mapping; unknown or duplicate keys are errors at the key's line."""
+        if not isinstance(at.node, yaml.MappingNode):
+            raise self.error(at, f"expected a mapping for {what}, got {_kind(at.node)}",
+                             f"valid keys: {', '.join(allowed)}")
+        out: dict[str, _At] = {}
+        for k, v in at.node.value:
+            line = k.start_mark.line + 1
+            if not isinstance(k, yaml.ScalarNode):
+                raise self.error(_At(k, at.key, line), f"keys in {what} must be plain names")
+            name = k.value
+            entry = _At(v, _child_key(at.key, name), line)
+            if name not in allowed:
+                raise self.error(entry, f"unknown key {name!r} in {what}",
+                                 f"valid keys: {', '.join(allowed)}")
+            if name in out:
+                raise self.error(entry, f"duplicate key {name!r} in {what}",
+                                 f"first given on line {out[name].line}")
+            out[name] = entry
+        return out
+
+    def items(self, at: _At, what: str) -> list[_At]:
+        """Items of a sequence, each citing its own line."""
+        if not isinstance(at.node, yaml.SequenceNode):
+            raise self.error(at, f"expected a list of {what}, got {_kind(at.node)}",
+                             f"write {at.key.rsplit('.', 1)[-1]}: [] or a '- ' item per entry")
+        return [_At(v, _child_key(at.key, i), v.start_mark.line + 1) for i, v in enumerate(at.node.value)]
+
+    def plain(self, node: yaml.Node) -> Any:
+        """Python value of a node (lists, dicts, numbers, strings) without file context."""
+        return self._construct.construct_object(node, deep=True)
+
+    def number(self, at: _At, lo: float | None = None, hi: float | None = None,
+               lo_open: bool = False) -> float:
+        """A finite number, optionally within [lo, hi] (or (lo, hi] with lo_open)."""
+        node = at.node
+        if not (isinstance(node, yaml.ScalarNode) and node.tag in (_TAG + "int", _TAG + "float")):
+            raise self.error(at, f"expected a number, got {_kind(node)}", "write a plain number like 1.5")
+        value = float(self.plain(node))
+        if not math.isfinite(value):
+            raise self.error(at, f"expected a finite number, got {node.value}")
+        below = lo is not None and (value <= lo if lo_open else value < lo)
+        if below or (hi is not None and value > hi):
+            lo_txt = "-inf" if lo is None else f"{lo:g}"
+            rng = f"{'(' if lo_open else '['}{lo_txt}, {'inf' if hi is None else f'{hi:g}'}]"
+            raise self.error(at, f"{value:g} is out of range {rng}")
+        return value
+
+    def vector(self, at: _At, n: int = 3, non_negative: bool = False) -> tuple[float, ...]:
+        """A list of exactly n finite numbers."""
+        example = "[1, 1, 1]" if n == 3 else str([0] * n)
+        if not isinstance(at.node, yaml.SequenceNode):
+            raise self.error(at, f"expected a list of {n} numbers, got {_kind(at.node)}", f"e.g. {example}")
+        if len(at.node.value) != n:
+            raise self.error(at, f"expected {n} numbers, got {len(at.node.value)}", f"e.g. {example}")
+        values = tuple(self.number(_At(v, _child_key(at.key, i), v.start_mark.line + 1),
+                                   lo=0.0 if non_negative else None)
+                       for i, v in enumerate(at.node.value))
+        return values
+
+    def direction(self, at: _At) -> tuple[float, float, float]:
+        """A non-zero 3-vector, normalised."""
+        v = np.asarray(self.vector(at), dtype=np.float64)
+        length = float(np.linalg.norm(v))
+        if length < 1e-9:
+            raise self.error(at, "direction must not be zero", "e.g. [0, -1, 0] points straight down")
+        return tuple(float(x) for x in v / length)
+
+    def string(self, at: _At) -> str:
+        """A scalar's text (names may look like numbers; keep what was written)."""
+        if not isinstance(at.node, yaml.ScalarNode) or at.node.tag == _TAG + "null" or at.node.value == "":
+            raise self.error(at, f"expected text, got {_kind(at.node)}")
+        return at.node.value
+
+    def path(self, at: _At) -> Path:
+        """A file path resolved against the scene file's directory."""
+        p = Path(self.string(at)).expanduser()
+        return (p if p.is_absolute() else self.base_dir / p).resolve()
+
+    # ---- scene parts ---------------------------------------------------------------------
+
+    def scene(self, root: yaml.Node | None) -> Scene:
+        """The whole document."""
+        scene = Scene()
+        if root is None:                                # empty file: an empty default scene
+            return scene
+        top = self.mapping(_At(root, "", root.start_mark.line + 1), TOP_KEYS, "the scene")
+        if "camera" in top:
+            scene.camera = self.camera(top["camera"])
+        if "background" in top:
+            scene.background = self.vector(top["background"], non_negative=True)
+        if "lights" in top:
+            scene.lights = [self.light(at) for at in self.items(top["lights"], "lights")]
+        if "nodes" in top:
+            scene.nodes = [self.node(at) for at in self.items(top["nodes"], "nodes")]
+        return scene
+
+    def camera(self, at: _At) -> Camera:
+        """camera: {position, target, up, fov_y, near, far}."""
+        f = self.mapping(at, CAMERA_KEYS, "camera")
+        cam = Camera()
+        for key in ("position", "target", "up"):
+            if key in f:
+                setattr(cam, key, self.vector(f[key]))
+        if "fov_y" in f:
+            cam.fov_y = self.number(f["fov_y"], 0.0, 179.9, lo_open=True)
+        if "near" in f:
+            cam.near = self.number(f["near"], 0.0, lo_open=True)
+        if "far" in f:
+            cam.far = self.number(f["far"], 0.0, lo_open=True)
+        if cam.far <= cam.near:
+            raise self.error(f.get("far", f.get("near", at)), f"far ({cam.far:g}) must be greater than near ({cam.near:g})")
+        view = np.subtract(cam.target, cam.position)
+        if np.linalg.norm(view) < 1e-9:
+            raise self.error(f.get("target", at), "camera target equals its position", "move the target")
+        if np.linalg.norm(np.cross(view, cam.up)) < 1e-9 * np.linalg.norm(view) * max(np.linalg.norm(cam.up), 1e-9):
+            raise self.error(f.get("up", at), "camera 'up' is zero or parallel to the view direction",
+                             "pick an up vector not along target - position, e.g. [0, 0, -1] when looking down")
+        return cam
+
+    def light(self, at: _At) -> Light:
+        """One entry of lights: its keys depend on its type."""
+        everything = tuple(dict.fromkeys(k for keys in LIGHT_KEYS.values() for k in keys))
+        f = self.mapping(at, everything, "a light")
+        kind = self.string(f["type"]) if "type" in f else "point"
+        if kind not in LIGHT_TYPES:
+            raise self.error(f["type"], f"unknown light type {kind!r}", f"valid types: {', '.join(LIGHT_TYPES)}")
+        for name, entry in f.items():
+            if name not in LIGHT_KEYS[kind]:
+                raise self.error(entry, f"{name!r} does not apply to {kind} lights",
+                                 f"valid keys for {kind}: {', '.join(LIGHT_KEYS[kind])}")
+        light = Light(type=kind)
+        if "position" in f:
+            light.position = self.vector(f["position"])
+        if "direction" in f:
+            light.direction = self.direction(f["direction"])
+        if "color" in f:
+            light.color = self.vector(f["color"], non_negative=True)
+        if "intensity" in f:
+            light.intensity = self.number(f["intensity"], 0.0)
+        if "radius" in f:
+            light.radius = self.number(f["radius"], 0.0, lo_open=True)
+        if "inner_angle_deg" in f:
+            light.inner_angle_deg = self.number(f["inner_angle_deg"], 0.0, 89.9)
+        if "outer_angle_deg" in f:
+            light.outer_angle_deg = self.number(f["outer_angle_deg"], 0.0, 89.9, lo_open=True)
+        if kind == "spot" and light.inner_angle_deg > light.outer_angle_deg:
+            raise self.error(f.get("inner_angle_deg", f.get("outer_angle_deg", at)),
+                             f"inner_angle_deg ({light.inner_angle_deg:g}) exceeds outer_angle_deg "
+                             f"({light.outer_angle_deg:g})", "the inner cone must fit inside the outer one")
+        return light
+
+    def node(self, at: _At) -> Node:
+        """One node and, recursively, its children."""
+        f = self.mapping(at, NODE_KEYS, "a node")
+        node = Node(name=self.string(f["name"]) if "name" in f else at.key)
+        if "transform" in f:
+            node.transform = self.transform(f["transform"])
+        if "mesh" in f:
+            node.mesh = self.mesh(f["mesh"])
+        if "material" in f:
+            node.material = self.material(f["material"])
+        if "children" in f:
+            node.children = [self.node(c) for c in self.items(f["children"], "child nodes")]
+        node.source = (self.file, at.line)              # for renderer errors about this node
+        return node
+
+    def transform(self, at: _At) -> Transform:
+        """transform: {translation, rotation_deg, scale (vector or one number)}."""
+        f = self.mapping(at, TRANSFORM_KEYS, "a transform")
+        t = Transform()
+        if "translation" in f:
+            t.translation = self.vector(f["translation"])
+        if "rotation_deg" in f:
+            t.rotation_deg = self.vector(f["rotation_deg"])
+        if "scale" in f:
+            s = f["scale"]
+            scale = (self.number(s),) * 3 if isinstance(s.node, yaml.ScalarNode) else self.vector(s)
+            if any(abs(c) < 1e-12 for c in scale):
+                raise self.error(s, "scale components must be non-zero",
+                                 "a zero scale flattens the object and breaks its normals; hide it another way")
+            t.scale = scale
+        return t
+
+    def mesh(self, at: _At) -> MeshData:
+        """mesh: {primitive: kind, params...} or {file: path}."""
+        if not isinstance(at.node, yaml.MappingNode):
+            raise self.error(at, f"expected a mapping for mesh, got {_kind(at.node)}",
+                             "write {primitive: box, size: [1, 1, 1]} or {file: model.obj}")
+        keys = [k.value for k, _ in at.node.value]
+        if ("primitive" in keys) == ("file" in keys):
+            raise self.error(at, "a mesh needs exactly one of 'primitive' or 'file'",
+                             f"primitives: {', '.join(PRIMITIVE_KINDS)}; files: .obj .ply .stl .glb .gltf")
+        if "file" in keys:
+            f = self.mapping(at, ("file",), "a file mesh")
+            path = self.path(f["file"])
+            if path not in self._meshes:
+                self._meshes[path] = load_mesh_file(path, self.file, f["file"].line, f["file"].key)
+            return self._meshes[path]
+        # Primitive parameters are validated by make_primitive; only their lines are needed here.
+        entries = {k.value: _At(v, _child_key(at.key, k.value), k.start_mark.line + 1)
+                   for k, v in at.node.value}
+        kind_at = entries.pop("primitive")
+        kind = self.string(kind_at)
+        params = {name: self.plain(e.node) for name, e in entries.items()}
+        try:
+            cache_key = (kind, repr(sorted(params.items())))
+            if cache_key not in self._meshes:
+                self._meshes[cache_key] = make_primitive(kind, **params)
+            return self._meshes[cache_key]
+        except ConfigError as exc:
+            where = kind_at if exc.key == "primitive" else entries.get(exc.key, at)
+            raise self.error(where, exc.reason, exc.hint) from None
+
+    def material(self, at: _At) -> MaterialInstance:
+        """material: {description, uniforms} or a bare description name."""
+        if isinstance(at.node, yaml.ScalarNode):
+            inst = MaterialInstance(description=self.string(at))
+            uniform_lines: dict[str, int] = {}
+        else:
+            f = self.mapping(at, MATERIAL_KEYS, "a material")
+            if "description" not in f:
+                raise self.error(at, "material needs a 'description' (the material name)",
+                                 "e.g. material: {description: pbr, uniforms: {albedo: [1, 0, 0]}}")
+            inst = MaterialInstance(description=self.string(f["description"]))
+            uniform_lines = {}
+            if "uniforms" in f:
+                u = f["uniforms"]
+                if not isinstance(u.node, yaml.MappingNode):
+                    raise self.error(u, f"expected a mapping for uniforms, got {_kind(u.node)}",
+                                     "e.g. uniforms: {alpha: 0.5}")
+                names = tuple(k.value for k, _ in u.node.value)
+                for name, entry in self.mapping(u, names, "uniforms").items():
+                    inst.uniforms[name] = self.uniform(entry)
+                    uniform_lines[name] = entry.line
+        inst.source = (self.file, at.line)              # the renderer cites this when validating
+        inst.uniform_lines = uniform_lines
+        return inst
+
+    def uniform(self, at: _At) -> Any:
+        """A uniform value: bool, float, tuple of floats (nested for matrices) or string/texture."""
+        node = at.node
+        if isinstance(node, yaml.SequenceNode):
+            if not node.value:
+                raise self.error(at, "uniform value is an empty list")
+            return tuple(self.uniform(_At(v, _child_key(at.key, i), v.start_mark.line + 1))
+                         for i, v in enumerate(node.value))
+        if isinstance(node, yaml.MappingNode) or node.tag == _TAG + "null":
+            raise self.error(at, f"unsupported uniform value: {_kind(node)}",
+                             "use a number, true/false, a list of numbers or a texture path")
+        if node.tag == _TAG + "bool":
+            return bool(self.plain(node))
+        if node.tag in (_TAG + "int", _TAG + "float"):
+            return self.number(at)
+        text = node.value
+        if text.lower().endswith(TEXTURE_SUFFIXES):
+            path = self.path(at)
+            if not path.is_file():
+                raise self.error(at, f"texture file not found: {path}",
+                                 "relative paths are resolved against the scene file's directory")
+            return str(path)
+        return text
+
+
+def load_scene_text(text: str, source_name: str = "<string>", base_dir: str | Path | None = None) -> Scene:
+    """Parse scene YAML; source_name is cited in errors, relative paths resolve against base_dir."""
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        context = exc.context
+        if context and exc.context_mark and mark and exc.context_mark.line != mark.line:
+            context += f" (started on line {exc.context_mark.line + 1})"  # where the unclosed thing began
+        reason = "invalid YAML: " + "; ".join(s for s in (context, exc.problem) if s)
+        raise ConfigError(reason, source_name, mark.line + 1 if mark else None,
+                          hint="check indentation, colons, quotes and brackets around this line") from None
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"invalid YAML: {exc}", source_name) from None
+    base = Path(base_dir) if base_dir is not None else Path.cwd()
+    return _Reader(source_name, base.resolve()).scene(root)
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Load a scene file; relative paths inside it resolve against its directory."""
+    p = Path(path)
+    if not p.is_file():
+        raise ConfigError(f"scene file not found: {p}", p, hint="check the path")
+    try:
+        text = p.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"scene file is not UTF-8 text ({exc.reason})", p) from None
+    scene = load_scene_text(text, str(p), p.parent)
+    scene.source = p.resolve()
+    return scene
+
+
+def demo_scene() -> Scene:
+    """The built-in demo: ground, opaque objects, intersecting transparent objects, coloured lights."""
+    res = resources.files("guaca_py.data").joinpath("demo_scene.yaml")
+    with resources.as_file(res) as p:
+        return load_scene(p)

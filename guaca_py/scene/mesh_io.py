@@ -1,0 +1,102 @@
+"""Load triangle meshes from files (OBJ, PLY, STL, glTF/GLB, ...) into MeshData via trimesh."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ConfigError
+from .graph import MeshData
+
+MESH_FORMATS_HINT = "supported formats: .obj, .ply, .stl, .glb, .gltf (anything trimesh reads)"
+
+
+def _smooth_normals(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Area-weighted vertex normals; done here so trimesh never needs scipy for it."""
+    tri = positions[faces]
+    face_n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # length = 2 * area
+    normals = np.zeros_like(positions)
+    for k in range(3):
+        np.add.at(normals, faces[:, k], face_n)
+    return normals
+
+
+def _unitize(normals: np.ndarray) -> np.ndarray:
+    """Normalise rows; zero rows (isolated or degenerate vertices) become +Z so all are unit."""
+    length = np.linalg.norm(normals, axis=1, keepdims=True)
+    ok = (length[:, 0] > 1e-12) & np.isfinite(length[:, 0])
+    out = np.tile(np.array([0.0, 0.0, 1.0]), (normals.shape[0], 1))
+    out[ok] = normals[ok] / length[ok]
+    return out
+
+
+def _file_normals(mesh) -> np.ndarray | None:
+    """Vertex normals the file itself provided, or None (asking trimesh would compute some)."""
+    cache = getattr(getattr(mesh, "_cache", None), "cache", None)
+    if cache is None:                                   # trimesh internals changed: accept its normals
+        return np.asarray(mesh.vertex_normals, dtype=np.float64)
+    normals = cache.get("vertex_normals")
+    if normals is None or np.shape(normals) != np.shape(mesh.vertices):
+        return None
+    return np.asarray(normals, dtype=np.float64)
+
+
+def _texcoords(mesh, count: int) -> np.ndarray:
+    """Per-vertex UVs when the file has them, else zeros so every MeshData carries texcoords."""
+    visual = getattr(mesh, "visual", None)
+    uv = getattr(visual, "uv", None) if getattr(visual, "kind", None) == "texture" else None
+    if uv is None or np.shape(uv) != (count, 2):
+        return np.zeros((count, 2), dtype=np.float32)
+    return np.nan_to_num(np.asarray(uv, dtype=np.float32))
+
+
+def load_mesh_file(path: str | Path, file_for_errors: str | Path | None = None,
+                   line: int | None = None, key: str | None = None) -> MeshData:
+    """Read a mesh file into one MeshData; scenes are flattened with their node transforms."""
+    import trimesh  # imported lazily: scenes made only of primitives never pay for it
+
+    p = Path(path)
+
+    def fail(reason: str, hint: str) -> ConfigError:
+        return ConfigError(reason, file_for_errors if file_for_errors is not None else p, line, key, hint)
+
+    if not p.is_file():
+        what = "is a directory, not a mesh file" if p.is_dir() else "not found"
+        raise fail(f"mesh file {what}: {p}",
+                   "check the path; relative paths are resolved against the scene file's directory")
+    try:
+        loaded = trimesh.load(str(p))
+    except Exception as exc:  # trimesh raises many types for unreadable input; all mean "bad file"
+        raise fail(f"cannot read mesh file {p}: {exc}", MESH_FORMATS_HINT) from exc
+
+    if isinstance(loaded, trimesh.Scene):
+        parts = [g for g in loaded.geometry.values() if isinstance(g, trimesh.Trimesh) and len(g.faces)]
+        if not parts:
+            if loaded.geometry:
+                raise fail(f"{p} is not a triangle mesh (it holds no faces)",
+                           "point clouds and line drawings cannot be rendered; export triangles")
+            raise fail(f"{p} contains no geometry", "the file is empty or not in a format trimesh understands")
+        loaded = loaded.to_mesh()                       # bakes each instance's scene-graph transform
+    if not isinstance(loaded, trimesh.Trimesh):
+        raise fail(f"{p} is not a triangle mesh (got {type(loaded).__name__})",
+                   "point clouds and line drawings cannot be rendered; export triangles")
+
+    positions = np.asarray(loaded.vertices, dtype=np.float64)
+    faces = np.asarray(loaded.faces, dtype=np.int64).reshape(-1, 3)
+    if len(faces) == 0 or len(positions) == 0:
+        raise fail(f"{p} has no triangles", "export the mesh with faces, not just vertices")
+    if not np.all(np.isfinite(positions)):
+        raise fail(f"{p} has non-finite vertex positions (NaN or inf)", "repair the mesh in a modelling tool")
+    if faces.min() < 0 or faces.max() >= len(positions):
+        raise fail(f"{p} has face indices outside its vertex list", "repair the mesh in a modelling tool")
+
+    normals = _file_normals(loaded)
+    if normals is None:
+        normals = _smooth_normals(positions, faces)
+    return MeshData(
+        positions=np.ascontiguousarray(positions, dtype=np.float32),
+        normals=np.ascontiguousarray(_unitize(normals), dtype=np.float32),
+        texcoords=np.ascontiguousarray(_texcoords(loaded, len(positions))),
+        indices=np.ascontiguousarray(faces, dtype=np.uint32),
+        name=p.stem,
+    )
