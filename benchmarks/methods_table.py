@@ -1,0 +1,151 @@
+"""Every transparency method the device runs, side by side: GPU time per stage, passes, memory, error.
+
+Usage: python benchmarks/methods_table.py OUTDIR [--size 1024] [--frames 10] [--warmup 3]
+                                          [--methods ID ...] [--ref-size 192]
+Timing: the demo scene through pipelines/default.yaml (median of --frames after --warmup).
+Error: (a) the demo scene, lit, linear output of pipelines/exact.yaml, against presort_lf
+(exact, itself verified against the CPU reference) on the same device; (b) an unlit layered
+scene (16 layers, shuffled submission) against the float64 CPU reference (tests/reference.py),
+non-edge pixels. Errors are in 1/255 units. Writes OUTDIR/methods.json, methods.md, methods.png.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
+
+from guaca_py import GuacaError, Renderer  # noqa: E402
+from guaca_py.benchmarking import measure  # noqa: E402
+from guaca_py.context import create_context  # noqa: E402
+from guaca_py.methods import method_class, method_ids  # noqa: E402
+from guaca_py.scene.loader import demo_scene  # noqa: E402
+from reference import compare, edge_mask, layered_quads_scene, render_reference, scene_triangles  # noqa: E402
+
+
+def linear_error(img: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
+    """RMSE and max abs error in 1/255 of two linear images clipped to [0, 1]."""
+    d = (np.clip(img, 0, 1) - np.clip(ref, 0, 1)) * 255.0
+    return float(np.sqrt(np.mean(d ** 2))), float(np.abs(d).max())
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("out", type=Path)
+    ap.add_argument("--size", type=int, default=1024)
+    ap.add_argument("--frames", type=int, default=10)
+    ap.add_argument("--warmup", type=int, default=3)
+    ap.add_argument("--ref-size", type=int, default=192)
+    ap.add_argument("--methods", nargs="*")
+    args = ap.parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
+    ctx, caps = create_context()
+    demo = demo_scene()
+    layered = layered_quads_scene(n_layers=16, order="shuffled", seed=11)
+    tris, rgb, alpha = scene_triangles(layered)
+    rs = args.ref_size
+    ref_img, _ = render_reference(tris, rgb, alpha, layered.camera, rs, rs, layered.background)
+    ref_mask = edge_mask(tris, layered.camera, rs, rs)
+    exact_r = Renderer("exact", ctx=ctx, method="presort_lf")
+    exact_demo = exact_r.render(demo, args.size, args.size).linear
+    exact_r.release()
+    rows = []
+    for mid in args.methods or method_ids():
+        cls = method_class(mid)
+        row = {"method": mid, "exact": cls.exact, "declared_geometry_passes": cls.geometry_passes}
+        reason = cls.unsupported_reason(caps)
+        if reason:
+            row["skipped"] = reason
+            rows.append(row)
+            print(f"{mid:<26} skipped: {reason}", flush=True)
+            continue
+        try:
+            r = Renderer("default", ctx=ctx, method=mid)
+            m = measure(r, demo, args.size, args.size, args.warmup, args.frames)
+            s = m.last.stats
+            row.update(pass_ms=m.pass_ms, total_ms=m.total_ms, timer=m.timer,
+                       geometry_passes=s.get("geometry_passes", 1), fragments=s.get("fragments", {}),
+                       memory=s.get("memory", {}), warnings=s.get("warnings", []))
+            r.release()
+            r = Renderer("exact", ctx=ctx, method=mid)
+            row["demo_rmse_255"], row["demo_max_255"] = linear_error(r.render(demo, args.size, args.size).linear, exact_demo)
+            e = compare(r.render(layered, rs, rs).image, ref_img, ref_mask)
+            row["ref_rmse_255"], row["ref_max_255"] = e["rmse_255"], e["max_abs_255"]
+            r.release()
+        except GuacaError as exc:
+            row["failed"] = str(exc)
+        rows.append(row)
+        print(f"{mid:<26} " + (f"failed: {row['failed']}" if "failed" in row else
+              f"{row['total_ms']:8.3f} ms  passes {row['geometry_passes']}  "
+              f"err(demo) {row['demo_rmse_255']:.3f}/{row['demo_max_255']:.1f}  "
+              f"err(ref) {row['ref_rmse_255']:.3f}/{row['ref_max_255']:.1f}"), flush=True)
+    meta = {"device": caps.renderer, "size": args.size, "frames": args.frames, "warmup": args.warmup,
+            "ref_size": rs, "insertion_path": caps.insertion_path}
+    (args.out / "methods.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=2))
+    md = table(rows, meta)
+    (args.out / "methods.md").write_text(md)
+    print(md)
+    chart(rows, meta, args.out / "methods.png")
+    return 0
+
+
+def _mem_used(mem: dict) -> int:
+    return sum(v for k, v in mem.items() if k.endswith("_used") or k == "gbuffer")
+
+
+def _mem_alloc(mem: dict) -> int:
+    return sum(v for k, v in mem.items() if not k.endswith("_used") and not k.endswith("node_bytes"))
+
+
+def table(rows, meta) -> str:
+    """Markdown table of the measured rows."""
+    out = [f"Device: {meta['device']} · {meta['size']}×{meta['size']} demo scene · median of {meta['frames']} "
+           f"frames after {meta['warmup']} warm-up · errors in 1/255 (RMSE / max)", "",
+           "| method | kind | geometry ms | lights ms | composite ms | post ms | total ms | geo passes | "
+           "memory alloc MiB | err demo vs exact | err unlit vs CPU ref |",
+           "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        if "pass_ms" not in r:
+            out.append(f"| {r['method']} | {'exact' if r['exact'] else 'approx'} | "
+                       + " | ".join(["—"] * 8) + f" | {r.get('skipped') or r.get('failed')} |")
+            continue
+        p = r["pass_ms"]
+        post = sum(v for k, v in p.items() if k not in ("geometry", "light_culling", "composite"))
+        out.append(f"| {r['method']} | {'exact' if r['exact'] else 'approx'} | {p.get('geometry', 0):.3f} | "
+                   f"{p.get('light_culling', 0):.3f} | {p.get('composite', 0):.3f} | {post:.3f} | {r['total_ms']:.3f} | "
+                   f"{r['geometry_passes']} | {_mem_alloc(r['memory']) / 2**20:.1f} | "
+                   f"{r['demo_rmse_255']:.2f} / {r['demo_max_255']:.0f} | {r['ref_rmse_255']:.2f} / {r['ref_max_255']:.0f} |")
+    return "\n".join(out) + "\n"
+
+
+def chart(rows, meta, path: Path) -> None:
+    """Speed against accuracy: total frame time vs error against the CPU reference."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 5))
+    for r in rows:
+        if "pass_ms" not in r:
+            continue
+        ax.scatter(r["total_ms"], max(r["ref_rmse_255"], 1e-3), marker="o" if r["exact"] else "^",
+                   color="tab:blue" if r["exact"] else "tab:red")
+        ax.annotate(r["method"], (r["total_ms"], max(r["ref_rmse_255"], 1e-3)), fontsize=7,
+                    xytext=(3, 3), textcoords="offset points")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel(f"GPU time per frame, ms (demo scene {meta['size']}², median)")
+    ax.set_ylabel("RMSE vs float64 reference, 1/255 (unlit, 16 layers)")
+    ax.set_title(f"Transparency methods on {meta['device']}: speed vs accuracy (○ exact, △ approximate)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
