@@ -28,11 +28,23 @@ def _cmd_render(args) -> int:
         overrides[k] = _parse_value(v)
     renderer = Renderer(args.pipeline, method=args.method, method_overrides=overrides,
                         material_paths=args.materials)
-    frame = renderer.render(scene, args.width, args.height)
+    if args.frames > 1 or args.warmup:
+        from .benchmarking import measure
+
+        m = measure(renderer, scene, args.width or renderer.config.resolution[0],
+                    args.height or renderer.config.resolution[1], args.warmup, args.frames)
+        frame = m.last
+        for name, ms in m.pass_ms.items():
+            frame.stats["passes"][name]["ms"] = round(ms, 4)  # report medians
+        frame.stats["timing"] = {"warmup": args.warmup, "frames": m.frames, "statistic": "median"}
+    else:
+        frame = renderer.render(scene, args.width, args.height)
     out = frame.save(args.out)
     s = frame.stats
     print(f"rendered {out} ({s['resolution'][0]}x{s['resolution'][1]}) on {s['device']}")
-    print(f"method {s['method']} ({s['insertion_path']} insertion), timer: {s['timer']}")
+    timing = s.get("timing")
+    how = f", median of {timing['frames']} frames after {timing['warmup']} warm-up" if timing else ", one frame"
+    print(f"method {s['method']} ({s['insertion_path']} insertion), timer: {s['timer']}{how}")
     for name, p in s["passes"].items():
         print(f"  {name:<14} {p['ms']:10.3f} ms")
     fr = s.get("fragments", {})
@@ -98,6 +110,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--height", type=int)
     r.add_argument("--out", default="out.png", help="output PNG (default out.png)")
     r.add_argument("--stats", help="write per-pass times, counters and memory as JSON")
+    r.add_argument("--warmup", type=int, default=0, help="untimed frames before measuring")
+    r.add_argument("--frames", type=int, default=1, help="timed frames; per-pass times are their medians")
     r.add_argument("--materials", action="append", help="extra directory of material descriptions")
     r.set_defaults(fn=_cmd_render)
     i = sub.add_parser("info", help="print the OpenGL device and its capabilities")
