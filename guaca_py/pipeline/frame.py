@@ -80,9 +80,10 @@ class FrameState:
         """Template variables shading/lighting.glsl.j2 needs (light lookup mode)."""
         return self.renderer.pass_named("light_culling").template_vars()
 
-    def draw_transparent(self, uniforms: dict | None = None, per_program: Callable | None = None) -> None:
-        """Draw every transparent draw with the method's transparent program variant."""
-        self.renderer.draw_list(self, self.transparent_draws, transparent=True,
+    def draw_transparent(self, uniforms: dict | None = None, per_program: Callable | None = None,
+                         order: list["Draw"] | None = None) -> None:
+        """Draw every transparent draw (or the draws of `order`, in that order) with the method's program variant."""
+        self.renderer.draw_list(self, self.transparent_draws if order is None else order, transparent=True,
                                 uniforms=uniforms or {}, per_program=per_program)
 
     def draw_opaque(self) -> None:
