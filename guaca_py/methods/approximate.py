@@ -175,14 +175,14 @@ class ForwardBlendMethod(TransparencyMethod):
 
 
 class UnsortedBlend(ForwardBlendMethod):
-    """Hardware alpha blending in submission order: the floor of the comparison."""
+    """Hardware alpha blending in submission order: the floor (exact for back-to-front, non-crossing layers)."""
 
     id = "unsorted_blend"
     summary = "back-to-front 'over' blending in submission order, no sorting (approximate floor)"
 
 
 class ObjectSortedBlend(ForwardBlendMethod):
-    """Alpha blending with the transparent draws sorted back to front by bounding-box centre distance."""
+    """Blending of draws sorted back to front by bounding-box centre distance (exact for separable layers)."""
 
     id = "object_sorted_blend"
     summary = "'over' blending of draws sorted back to front by world bounding-box centre distance"
