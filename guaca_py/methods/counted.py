@@ -222,7 +222,6 @@ class DynamicFragmentBuffer(_CountedStorage):
         """Per-pixel counts and offsets, fragment array (allocated == the frame's need), scan buffers."""
         if not self._bufs:
             return {}
-        cap = self._last.get("capacity", 0)
         return {"counted_counts": self._bufs["counts"].size, "counted_offsets": self._bufs["pixels"].size,
                 "counted_fragments": self._bufs["nodes"].size,
                 "counted_fragments_used": self._last.get("stored", 0) * PAYLOAD_BYTES,
@@ -386,4 +385,4 @@ class PagedLinkedLists(_CountedStorage):
                 "counted_pages": self.capacity * self.page_bytes,
                 "counted_pages_used": (used + 1) * self.page_bytes,
                 "counted_fragments_used": self._last.get("stored", 0) * PAYLOAD_BYTES,
-                "counted_node_bytes": PAYLOAD_BYTES, "counted_page_bytes": self.page_bytes}
+                "counted_node_bytes": PAYLOAD_BYTES}
