@@ -80,6 +80,9 @@ class TransparencyMethod:
     def bind_composite(self, frame: "FrameState", program) -> None:
         """Bind storage and uniforms the resolve code reads."""
 
+    def after_composite(self, frame: "FrameState") -> None:
+        """Read what the composite pass counted (e.g. fragments a resolve had to truncate) into frame.stats."""
+
     def composite_threshold(self) -> float:
         """Accumulated alpha at which the composite stops walking fragments."""
         return float(self.settings.get("threshold", 1.0))

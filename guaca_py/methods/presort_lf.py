@@ -27,6 +27,8 @@ class PreSortLF(TransparencyMethod):
     geometry_passes = "1"
     early_termination = False
     summary = "sorted lock-free insertion into per-pixel lists (no early termination)"
+    counters: tuple[str, ...] = COUNTERS  # counter words of the counter buffer, in layout order
+    extra_slots = 0  # per-pixel link words after the node links (second list heads, locks)
     SETTINGS = {
         "budget_mb": Setting((str, int, float), "auto", "node pool size in MB, or 'auto' (grow to the need)", check=_budget),
         "max_regrow": Setting((int,), 2, "re-renders allowed to grow an 'auto' pool after overflow"),
@@ -55,9 +57,9 @@ class PreSortLF(TransparencyMethod):
         if self._links is None or self._pixels != pixels or self.capacity != capacity:
             self.release()
             self._pixels, self.capacity = pixels, capacity
-            self._links = ctx.buffer(reserve=(pixels + capacity) * self.link_bytes)
+            self._links = ctx.buffer(reserve=(pixels * (1 + self.extra_slots) + capacity) * self.link_bytes)
             self._nodes = ctx.buffer(reserve=capacity * NODE_PAYLOAD_BYTES)
-            self._counters = ctx.buffer(reserve=len(COUNTERS) * 4)
+            self._counters = ctx.buffer(reserve=len(self.counters) * 4)
             self._cull = ctx.texture(size, 1, dtype="u4")
 
     def prepare(self, frame) -> None:
@@ -69,12 +71,14 @@ class PreSortLF(TransparencyMethod):
         else:
             cap = self._initial_capacity(frame.pixel_count)
         self._alloc(frame.ctx, frame.pixel_count, cap, (frame.width, frame.height))
-        self._counters.write(np.array([1] + [0] * (len(COUNTERS) - 1), dtype=np.uint32).tobytes())
+        self._counters.write(np.array([1] + [0] * (len(self.counters) - 1), dtype=np.uint32).tobytes())
         clear = frame.renderer.shaders.compute("abuffer/clear.comp.j2")
         self._links.bind_to_storage_buffer(0)
         self._cull.bind_to_image(0, read=False, write=True)
         clear["gua_size"] = (frame.width, frame.height)
         clear["gua_words_per_link"] = self.link_bytes // 4
+        clear["gua_extra_base"] = frame.pixel_count + self.capacity
+        clear["gua_extra_slots"] = self.extra_slots
         clear.run(math.ceil(frame.width / 16), math.ceil(frame.height / 16), 1)
         frame.ctx.memory_barrier()
 
@@ -103,7 +107,7 @@ class PreSortLF(TransparencyMethod):
 
     def finish(self, frame) -> bool:
         """Read counters; with an 'auto' budget, grow the pool to the need and ask for a re-render."""
-        c = dict(zip(COUNTERS, np.frombuffer(self._counters.read(), dtype=np.uint32).tolist()))
+        c = dict(zip(self.counters, np.frombuffer(self._counters.read(), dtype=np.uint32).tolist()))
         requested = c["alloc"] - 1              # node 0 is the null node
         used = min(requested, self.capacity - 1)
         frame.stats["fragments"] = {
@@ -125,6 +129,7 @@ class PreSortLF(TransparencyMethod):
             return True
         if auto and not c["overflow"] and requested + 1 < self.capacity // 4 and self.capacity > 4096:
             self.capacity_request(max(1024, int(requested * 1.15) + 1024))  # shrink for the next frame
+        self.regrown = 0  # max_regrow bounds the re-renders of one frame, not of the renderer's life
         return False
 
     def capacity_request(self, nodes: int) -> None:

@@ -44,6 +44,8 @@ class CompositePass(FullscreenPass):
         g = frame.resources["gbuffer"]
         tex = self.run_fullscreen(frame, prog, {"gbuf_albedo": g["albedo"], "gbuf_normal": g["normal"],
                                                 "gbuf_material": g["material"], "gbuf_depth": g["depth"]})
+        if method is not None:
+            method.after_composite(frame)
         frame.resources["hdr"] = tex
         frame.resources["color"] = tex
 
