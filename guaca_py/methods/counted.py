@@ -367,8 +367,10 @@ class PagedLinkedLists(_CountedStorage):
                               f"fragments; grown to {self._want - 1} pages and re-rendered")
             return True
         if c["overflow"]:
+            hint = ("the device's storage block limit: try a smaller page_size" if self.capacity >= limit and auto
+                    else "raise transparency.budget_mb or use 'auto'")
             self._warn(frame, f"paged_ll overflow: {c['overflow']} fragments dropped (pool {self.capacity - 1} "
-                              f"pages of {self.page}); raise transparency.budget_mb or use 'auto'")
+                              f"pages of {self.page}); {hint}")
         if c["guard"]:
             self._warn(frame, f"{c['guard']} paged_ll insertions hit max_steps and were dropped")
         target = max(1024, int(used * 1.15) + 1024)
