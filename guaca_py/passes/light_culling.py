@@ -1,46 +1,235 @@
-"""Light-culling pass: enumerates visible lights and uploads them for the composite pass."""
+"""Light-culling pass: frustum-culls lights on the CPU and builds the per-tile light bit grid on the GPU."""
 from __future__ import annotations
 
+import math
 
+import numpy as np
+
+from ..errors import DeviceError
 from ..pipeline.settings import Setting, positive
 from .base import Pass
+from .light_grid_cpu import compare_grids, exact_tile_lights, grid_shape, unpack_grid
 from .lights import pack_lights, visible_lights
+
+MODES = ("auto", "conservative", "fallback", "off")
+ARC_SEGMENTS = 8        # proxy profile: segments of the range sphere's arc
+RING_SEGMENTS = 16      # proxy: sides of the circumscribed polygon around the light's axis
+# Largest distance of a proxy vertex from the light, in units of its range.
+PROXY_EXTENT = 1.0 / (math.cos(math.pi / RING_SEGMENTS) * math.cos(math.pi / (2 * ARC_SEGMENTS)))
+PROXY_VERTICES = (ARC_SEGMENTS + 2) * RING_SEGMENTS * 6
+LIGHT_GRID_UNIT = 31    # texture unit of the grid: above the G-buffer (0-3), method (4-7) and material (8+) units
+_PLANE_MARGIN = 1e-3    # relative: proxies this close to the near/far plane count as crossing it
+
+
+def _tile_size(v) -> str | None:
+    return None if 1 <= v <= 256 else f"must be in 1..256 pixels, got {v}"
 
 
 class LightCullingPass(Pass):
-    """Frustum-culls lights on the CPU and uploads them; mode 'off' shades every light everywhere."""
+    """Assigns the visible lights to screen tiles (bit i of a tile set where light i may touch it).
+
+    Modes: 'conservative' rasterizes each light's proxy at tile resolution with NV conservative
+    rasterization; 'fallback' emulates it (bounding box + exact triangle/tile overlap test per
+    fragment); 'auto' picks conservative where the device has it; 'off' builds no grid and
+    shades every light everywhere (the comparison baseline).
+    """
 
     name = "light_culling"
     reads = ("lights",)
     writes = ("light_grid",)
     SETTINGS = {
-        "mode": Setting((str,), "off", "light grid construction", choices=("off",)),
-        "tile_size": Setting((int,), 16, "tile edge in pixels", check=positive),
+        "mode": Setting((str,), "auto", "light grid construction", choices=MODES),
+        "tile_size": Setting((int,), 16, "tile edge in pixels", check=_tile_size),
         "max_lights": Setting((int,), 1024, "most visible lights a frame may use", check=positive),
+        "report_accuracy": Setting((bool,), False,
+                                   "compare the grid with the exact CPU answer every frame (slow; stats)"),
     }
 
     def __init__(self, renderer, settings):
         super().__init__(renderer, settings)
-        self._buffer = None
+        self._buffer = self._everywhere = self._grid = self._fbo = None
+        self._grid_key = None
+        self.layers_allocated = 1
+        self.packed_lights: list = []     # lights in bit order of the last frame
+        self._raw_gl = None
+        self._vaos: dict = {}
+        self.mode, self.mode_note = self._resolve_mode(settings["mode"], renderer.caps)
 
-    def execute(self, frame) -> None:
-        """Upload the visible lights; the grid is None in mode 'off'."""
-        lights = visible_lights(frame.scene.lights, frame.projection @ frame.view)
-        dropped = max(0, len(lights) - self.settings["max_lights"])
-        lights = lights[: self.settings["max_lights"]]
-        data = pack_lights(lights).tobytes()
+    def _resolve_mode(self, mode: str, caps) -> tuple[str, str]:
+        """The construction mode this device runs, and why."""
+        if mode in ("off", "fallback"):
+            return mode, "as configured"
+        from ..gl_state import GL_CONSERVATIVE_RASTERIZATION_NV, raw_gl
+
+        if not caps.conservative_raster:
+            if mode == "conservative":
+                raise DeviceError(f"light_culling mode 'conservative' needs GL_NV_conservative_raster, which "
+                                  f"{caps.renderer} does not have; use mode 'auto' or 'fallback'")
+            return "fallback", "GL_NV_conservative_raster not available"
+        gl = raw_gl()
+        if gl is None or not gl.try_enable(GL_CONSERVATIVE_RASTERIZATION_NV):
+            reason = "no GL library to call glEnable through" if gl is None else \
+                "glEnable(GL_CONSERVATIVE_RASTERIZATION_NV) did not take effect"
+            if mode == "conservative":
+                raise DeviceError(f"light_culling mode 'conservative': {reason} on {caps.renderer}")
+            return "fallback", reason
+        gl.disable(GL_CONSERVATIVE_RASTERIZATION_NV)
+        self._raw_gl = gl
+        return "conservative", f"GL_NV_conservative_raster via {gl.source}"
+
+    # ------------------------------------------------------------------ CPU side
+    def _order(self, lights, view: np.ndarray, near: float, far: float) -> tuple[list, int]:
+        """Lights in bit order: rasterized proxies first, then those reaching every tile; and the split.
+
+        Proxies are clipped by the near and far planes, which removes their caps. A ray from the eye
+        that meets the clipped volume still crosses a drawn face (where it enters or leaves),
+        unless the volume spans both planes along it: only such lights (and directional ones)
+        are given every tile.
+        """
+        raster, everywhere = [], []
+        for l in lights:
+            if l.type == "directional":
+                everywhere.append(l)
+                continue
+            depth = -(view[2, :3] @ np.asarray(l.position, dtype=np.float64) + view[2, 3])
+            reach = l.radius * PROXY_EXTENT * (1.0 + _PLANE_MARGIN)
+            spans = depth - reach <= near * (1.0 + _PLANE_MARGIN) and depth + reach >= far * (1.0 - _PLANE_MARGIN)
+            (everywhere if spans else raster).append(l)
+        return raster + everywhere, len(raster)
+
+    def _upload(self, data: bytes) -> None:
         if self._buffer is None or self._buffer.size < len(data):
             if self._buffer is not None:
                 self._buffer.release()
             self._buffer = self.ctx.buffer(reserve=max(len(data), 64))
         self._buffer.write(data)
-        frame.resources["light_grid"] = {"buffer": self._buffer, "count": len(lights), "grid": None}
-        frame.stats["lights"] = {"scene": len(frame.scene.lights), "visible": len(lights),
-                                 "dropped_over_max": dropped, "mode": self.settings["mode"]}
-        frame.stats.setdefault("memory", {})["lights"] = len(data)
+
+    # ------------------------------------------------------------------ GPU side
+    def _ensure_grid(self, tw: int, th: int, layers: int) -> None:
+        """Grid texture (tw, th, allocated layers); layers grow by doubling, only when needed."""
+        cap = max(1, -(-self.settings["max_lights"] // 32))
+        alloc = self.layers_allocated if self._grid is not None and self._grid_key == (tw, th) else 1
+        while alloc < layers:
+            alloc *= 2
+        alloc = max(1, min(alloc, cap))
+        if self._grid is not None and self._grid_key == (tw, th) and alloc == self.layers_allocated:
+            return
+        self._release_grid()
+        self._grid = self.ctx.texture_array((tw, th, alloc), 1, dtype="u4")
+        self._grid.filter = (self.renderer.moderngl.NEAREST, self.renderer.moderngl.NEAREST)
+        self._fbo = self.ctx.empty_framebuffer((tw, th))
+        self._everywhere = self.ctx.buffer(reserve=alloc * 4)
+        self._grid_key, self.layers_allocated = (tw, th), alloc
+
+    def _grid_matrix(self, frame, tw: int, th: int) -> np.ndarray:
+        """World -> clip of the tile grid: the frame's view-projection with NDC rescaled to whole tiles."""
+        t = self.settings["tile_size"]
+        sx, sy = frame.width / (t * tw), frame.height / (t * th)
+        fix = np.array([[sx, 0, 0, sx - 1], [0, sy, 0, sy - 1], [0, 0, 1, 0], [0, 0, 0, 1]], dtype=np.float64)
+        return fix @ frame.projection @ frame.view
+
+    def _build_grid(self, frame, count: int, n_raster: int) -> None:
+        from ..gl_state import GL_CONSERVATIVE_RASTERIZATION_NV
+        from ..pipeline.frame import mat_bytes
+
+        mgl = self.renderer.moderngl
+        tw, th = grid_shape(frame.width, frame.height, self.settings["tile_size"])
+        layers = -(-count // 32)
+        self._ensure_grid(tw, th, layers)
+        masks = np.zeros(self.layers_allocated, dtype=np.uint32)
+        for i in range(n_raster, count):            # lights that reach every tile
+            masks[i // 32] |= np.uint32(1 << (i % 32))
+        self._everywhere.write(masks.tobytes())
+        clear = self.renderer.shaders.compute("light_grid/clear.comp.j2")
+        self._grid.bind_to_image(0, read=False, write=True)
+        self._everywhere.bind_to_storage_buffer(0)
+        clear["gua_grid_dims"] = (tw, th, self.layers_allocated)
+        clear.run(-(-tw // 8), -(-th // 8), self.layers_allocated)
+        self.ctx.memory_barrier()
+        if n_raster:
+            prog = self._proxy_program()
+            prog["gua_grid_view_projection"].write(mat_bytes(self._grid_matrix(frame, tw, th)))
+            prog["gua_first_light"] = 0
+            if "gua_grid_size" in prog:
+                prog["gua_grid_size"] = (float(tw), float(th))
+            self._fbo.use()
+            self.ctx.disable(mgl.DEPTH_TEST | mgl.BLEND | mgl.CULL_FACE)
+            self._grid.bind_to_image(0, read=True, write=True)
+            self._buffer.bind_to_storage_buffer(3)
+            vao = self._vaos.get(prog.glo)
+            if vao is None:
+                vao = self._vaos[prog.glo] = self.ctx.vertex_array(prog, [])
+            conservative = self.mode == "conservative"
+            if conservative:
+                self._raw_gl.enable(GL_CONSERVATIVE_RASTERIZATION_NV)
+            try:
+                vao.render(mgl.TRIANGLES, vertices=PROXY_VERTICES, instances=n_raster)
+            finally:
+                if conservative:
+                    self._raw_gl.disable(GL_CONSERVATIVE_RASTERIZATION_NV)
+            self.ctx.memory_barrier()
+
+    def _proxy_program(self):
+        dilate = self.mode == "fallback"
+        geo = {"arc_segments": ARC_SEGMENTS, "ring_segments": RING_SEGMENTS}
+        stages = {"vertex_shader": ("light_grid/proxy.vert.j2", geo),
+                  "fragment_shader": ("light_grid/mark.frag.j2", {"dilate": dilate})}
+        if dilate:
+            stages["geometry_shader"] = ("light_grid/dilate.geom.j2", {})
+        return self.renderer.shaders.program(("light_grid_proxy", dilate, ARC_SEGMENTS, RING_SEGMENTS), stages,
+                                             label="light grid proxies")
+
+    # ------------------------------------------------------------------ pass
+    def execute(self, frame) -> None:
+        """Cull, order and upload the visible lights, then (unless mode 'off') build the light grid."""
+        lights = visible_lights(frame.scene.lights, frame.projection @ frame.view)
+        visible = len(lights)
+        dropped = max(0, visible - self.settings["max_lights"])
+        lights = lights[: self.settings["max_lights"]]
+        n_raster = 0
+        if self.mode != "off":
+            cam = frame.scene.camera
+            lights, n_raster = self._order(lights, frame.view, cam.near, cam.far)
+        data = pack_lights(lights).tobytes()
+        self._upload(data)
+        self.packed_lights = list(lights)
+        grid = None
+        if self.mode != "off":
+            self._build_grid(frame, len(lights), n_raster)
+            grid = self._grid
+        frame.resources["light_grid"] = {"buffer": self._buffer, "count": len(lights), "grid": grid,
+                                         "layers": -(-len(lights) // 32), "tile_size": self.settings["tile_size"]}
+        tw, th = grid_shape(frame.width, frame.height, self.settings["tile_size"])
+        stats = {"scene": len(frame.scene.lights), "visible": visible, "shaded": len(lights),
+                 "dropped_over_max": dropped, "mode": self.mode, "mode_requested": self.settings["mode"],
+                 "mode_reason": self.mode_note, "tile_size": self.settings["tile_size"]}
+        mem = frame.stats.setdefault("memory", {})
+        mem["lights"] = len(data)
+        if grid is not None:
+            stats.update({"grid": [tw, th], "layers": -(-len(lights) // 32), "layers_allocated": self.layers_allocated,
+                          "rasterized": n_raster, "every_tile": len(lights) - n_raster})
+            mem["light_grid"] = tw * th * self.layers_allocated * 4
+            if self.settings["report_accuracy"]:
+                stats["grid_check"] = self.grid_check(frame)
+        frame.stats["lights"] = stats
         if dropped:
             frame.stats.setdefault("warnings", []).append(
                 f"{dropped} visible lights over max_lights={self.settings['max_lights']} were not shaded")
+
+    # ------------------------------------------------------------------ inspection
+    def grid_bits(self) -> np.ndarray:
+        """Bool (lights, tiles down, tiles across) read back from the last grid; bit order = packed_lights."""
+        if self._grid is None or self.mode == "off":
+            raise RuntimeError("no light grid: mode 'off' or nothing rendered yet")
+        tw, th = self._grid_key
+        words = np.frombuffer(self._grid.read(), dtype=np.uint32).reshape(self.layers_allocated, th, tw)
+        return unpack_grid(words, len(self.packed_lights))
+
+    def grid_check(self, frame) -> dict:
+        """Missing and extra (light, tile) pairs of the last grid against the exact float64 CPU answer."""
+        exact = exact_tile_lights(self.packed_lights, frame.view, frame.projection, frame.width, frame.height,
+                                  self.settings["tile_size"])
+        return compare_grids(exact, self.grid_bits())
 
     def bind(self, frame, prog) -> None:
         """Bind the light list (and grid, when built) for a shading program."""
@@ -48,16 +237,34 @@ class LightCullingPass(Pass):
         lg["buffer"].bind_to_storage_buffer(3)
         if "gua_light_count" in prog:
             prog["gua_light_count"] = lg["count"]
+        if lg["grid"] is not None and "gua_light_bits" in prog:
+            lg["grid"].use(location=LIGHT_GRID_UNIT)
+            prog["gua_light_bits"] = LIGHT_GRID_UNIT
+            prog["gua_tile_size"] = lg["tile_size"]
+            prog["gua_light_layers"] = lg["layers"]
 
     def template_vars(self) -> dict:
         """Shader variables describing how lights are looked up."""
-        return {"light_grid": False, "max_light_layers": 1}
+        if self.mode == "off":
+            return {"light_grid": False, "max_light_layers": 1}
+        return {"light_grid": True, "max_light_layers": self.layers_allocated}
+
+    def _release_grid(self) -> None:
+        for o in (self._grid, self._fbo, self._everywhere):
+            if o is not None:
+                o.release()
+        self._grid = self._fbo = self._everywhere = None
+        self._grid_key = None
 
     def release(self) -> None:
-        """Free the light buffer."""
+        """Free the light buffer and the grid."""
+        self._release_grid()
+        for vao in self._vaos.values():
+            vao.release()
+        self._vaos = {}
         if self._buffer is not None:
             self._buffer.release()
             self._buffer = None
 
 
-__all__ = ["LightCullingPass"]
+__all__ = ["LightCullingPass", "MODES", "PROXY_EXTENT", "LIGHT_GRID_UNIT"]
