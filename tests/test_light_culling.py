@@ -300,12 +300,16 @@ def test_debug_light_count_with_culling_off(renderer_factory):
     assert np.abs(frame.image.astype(float) / 255 - heat_color(n, 200)).max() <= 1.0 / 255 + 1e-6
 
 
-def test_debug_depth_complexity_counts_layers_with_legend(renderer_factory):
+def _complexity_scene():
     # 5 overlapping panes in the centre, 2 around it, none in the corners
     nodes = [quad_node(f"big{i}", -0.2 * i, (1, 0, 0), 0.3, size=2.4) for i in range(2)]
     nodes += [quad_node(f"small{i}", 0.5 - 0.2 * i, (0, 1, 0), 0.3, size=0.8) for i in range(3)]
+    return simple_scene(nodes)
+
+
+def test_debug_depth_complexity_counts_layers_with_legend(renderer_factory):
     r = renderer_factory(pipeline("fallback", extra="  - debug_depth_complexity: {max: 8}\n"))
-    frame = r.render(simple_scene(nodes), 96, 96)
+    frame = r.render(_complexity_scene(), 96, 96)
     img = frame.image.astype(float) / 255
     assert np.abs(img[44:52, 44:52] - heat_color(5, 8)).max() <= 1.0 / 255 + 1e-6
     assert np.abs(img[30, 30] - heat_color(2, 8)).max() <= 1.0 / 255 + 1e-6
@@ -315,6 +319,20 @@ def test_debug_depth_complexity_counts_layers_with_legend(renderer_factory):
     bar = legend.reshape(-1, 3)
     assert any(np.abs(bar.astype(float) / 255 - heat_color(8, 8)).max(axis=1) <= 1.5 / 255)   # top of the bar
     assert frame.stats["debug_views"]["debug_depth_complexity"]["supported"]
+
+
+@pytest.mark.parametrize("method", ["presort_lf", "presort_cs", "presort_lf_merge2_et", "post_sort", "post_merge16"])
+def test_debug_depth_complexity_other_list_methods(renderer_factory, method):
+    from guaca_py import UnsupportedMethodError
+
+    try:
+        r = renderer_factory(pipeline("off", extra="  - debug_depth_complexity: {max: 8, legend: false}\n"),
+                             method=method)
+    except UnsupportedMethodError as exc:
+        pytest.skip(str(exc))
+    img = r.render(_complexity_scene(), 64, 64).image.astype(float) / 255
+    assert np.abs(img[28:36, 28:36] - heat_color(5, 8)).max() <= 1.0 / 255 + 1e-6
+    assert np.abs(img[20, 20] - heat_color(2, 8)).max() <= 1.0 / 255 + 1e-6
 
 
 def test_debug_depth_complexity_unsupported_method_says_why(renderer_factory):
