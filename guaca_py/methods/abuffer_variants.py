@@ -10,16 +10,12 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import UnsupportedMethodError
-from ..pipeline.settings import Setting
+from ..pipeline.settings import Setting, positive
 from .presort_lf import COUNTERS, NODE_PAYLOAD_BYTES, PreSortLF
 
 # counter words after presort_lf's, in the order of abuffer/variants_common.glsl.j2
 VARIANT_COUNTERS = COUNTERS + ("lock_abandoned", "truncated", "truncated_pixels")
 _INTERLOCK_EXT = "#extension GL_ARB_fragment_shader_interlock : require\n"
-
-
-def _at_least_one(v) -> str | None:
-    return None if v >= 1 else f"must be >= 1, got {v}"
 
 
 def _array_size(v) -> str | None:
@@ -38,6 +34,7 @@ class ABufferVariant(PreSortLF):
         self.node_bytes = NODE_PAYLOAD_BYTES + self.link_bytes
 
     def _counts(self) -> dict[str, int]:
+        """The counter buffer, by name (one small read-back)."""
         return dict(zip(self.counters, np.frombuffer(self._counters.read(), dtype=np.uint32).tolist()))
 
     def finish(self, frame) -> bool:
@@ -96,7 +93,7 @@ class PreSortCS(ABufferVariant):
                         "'spin' (per-pixel spin lock) or 'auto' (interlock where the device has it)",
                         choices=("auto", "interlock", "spin")),
         "max_spin": Setting((int,), 65536, "lock attempts before a fragment gives up (counted, reported)",
-                            check=_at_least_one),
+                            check=positive),
     }
 
     def __init__(self, settings, caps):
