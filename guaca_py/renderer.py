@@ -169,14 +169,21 @@ class Renderer:
         t0 = time.perf_counter()
         for p in self.passes:
             for attempt in range(1 + 16):
+                warned = len(frame.stats.get("warnings", []))
                 ms, kind = self._timed(lambda p=p: p.execute(frame))
                 if not frame.rerender:
                     break
                 frame.rerender = False
                 frame.stats["regrown"] += 1
+                del frame.stats.get("warnings", [])[warned:]  # that attempt's overflow is repaired
             frame.stats["passes"][p.name] = {"ms": round(ms, 4)}
             frame.stats["timer"] = kind
         frame.stats.setdefault("memory", {}).update(self.method.memory() if frame.transparent_draws else {})
+        declared = self.method.geometry_passes
+        frame.stats.setdefault("geometry_passes", int(declared) if frame.transparent_draws and declared.isdigit() else 1)
+        if kind == "gpu" and any(p["ms"] >= 4294.9 for p in frame.stats["passes"].values()):
+            frame.stats.setdefault("warnings", []).append(
+                "a pass took longer than the 32-bit GPU timer result can hold (4.29 s); its time is clipped")
         frame.stats["frame_wall_ms"] = round((time.perf_counter() - t0) * 1e3, 3)
         return self._read_back(frame)
 
