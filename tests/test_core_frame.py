@@ -134,3 +134,16 @@ def test_demo_default_pipeline_renders(renderer_factory):
     assert s["transparent_draws"] >= 3 and s["fragments"]["stored"] > 0
     assert set(s["passes"]) >= {"geometry", "light_culling", "composite", "tone_mapping", "fxaa"}
     assert frame.image.std() > 5  # not a flat image
+
+
+def test_auto_pool_shrinks_to_the_need_on_later_frames(renderer_factory):
+    # the first frame starts with one node per pixel; a sparse scene needs far fewer
+    scene = simple_scene([quad_node("small", 0.0, (1, 0, 0), 0.5, size=0.4)])
+    r = renderer_factory("exact", method="presort_lf")
+    first = r.render(scene, 128, 128)
+    second = r.render(scene, 128, 128)
+    need = second.stats["fragments"]["stored"]
+    node = second.stats["memory"]["abuffer_node_bytes"]
+    assert second.stats["memory"]["abuffer_pool"] < first.stats["memory"]["abuffer_pool"]
+    assert second.stats["memory"]["abuffer_pool"] <= (need * 1.15 + 1025) * node
+    assert (second.image == first.image).all()

@@ -127,8 +127,11 @@ class PreSortLF(TransparencyMethod):
             self.regrown += 1
             self.capacity_request(int(requested * 1.15) + 1024)
             return True
-        if auto and not c["overflow"] and requested + 1 < self.capacity // 4 and self.capacity > 4096:
-            self.capacity_request(max(1024, int(requested * 1.15) + 1024))  # shrink for the next frame
+        target = max(1024, int(requested * 1.15) + 1024)
+        if auto and not c["overflow"] and target * 3 < self.capacity * 2:
+            # hold what the scene needs: shrink for the next frame once a third of the pool idles
+            # (growth adds 15%, so a steady scene does not oscillate)
+            self.capacity_request(target)
         self.regrown = 0  # max_regrow bounds the re-renders of one frame, not of the renderer's life
         return False
 
