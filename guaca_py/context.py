@@ -24,6 +24,7 @@ class Capabilities:
     conservative_raster: bool    # NV_conservative_raster
     gpu_timers: bool             # timer queries measure real GPU time (not on software rasterizers)
     software: bool               # llvmpipe / softpipe / swrast
+    framebuffer_fetch: bool = False  # EXT_shader_framebuffer_fetch: ordered read-modify-write of colour targets
 
     def as_dict(self) -> dict:
         """Plain dict for JSON output."""
@@ -46,6 +47,7 @@ def detect_capabilities(ctx, disable: tuple[str, ...] = ()) -> Capabilities:
         fragment_interlock="GL_ARB_fragment_shader_interlock" in ext,
         conservative_raster="GL_NV_conservative_raster" in ext,
         gpu_timers=("GL_ARB_timer_query" in ext or ctx.version_code >= 330) and not software,
+        framebuffer_fetch="GL_EXT_shader_framebuffer_fetch" in ext,
     )
     for name in disable:
         if name not in caps:

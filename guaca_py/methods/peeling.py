@@ -1,0 +1,397 @@
+"""Depth peeling family: depth peeling and dual depth peeling (shared machinery for all peelers).
+
+Peeling shades each peeled layer, so these methods run their geometry passes at the start of the
+composite pass (`geometry_in_composite`). A geometry pass keeps, per pixel, the nearest remaining
+fragment (dual: also the farthest) by its exact key (window depth, tie id) together with its
+packed shading inputs; a compute step then shades that layer with the shared shade_surface,
+blends it under the front accumulation (dual: over the back one) and moves the pixel's bounds.
+Only fragments in front of the G-buffer depth are peeled; the composite puts the accumulated
+layers in front of the shaded opaque surface.
+
+Why not the hardware depth test: moderngl only makes 24-bit depth textures, and an exact order
+with deterministic ties needs a 64-bit (depth, tie) comparison. The per-pass "depth buffer" is
+therefore emulated in colour targets read and written in primitive order (framebuffer fetch, or
+images inside an ordered fragment shader interlock).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..pipeline.settings import Setting
+from .base import TransparencyMethod
+
+# Counter words of peeling/counters.glsl.j2, in order.
+COUNTERS = ("in_range", "peeled", "composited", "overflow", "alloc", "guard", "saturated", "rejected")
+EMPTY_NEAR = "uvec4(GUA_INF, 0u, 0u, 0u)"          # slot clears (GLSL) of step.comp.j2's init step
+EMPTY_NEAR_TIE = "uvec4(0u, 0u, 0u, GUA_TIE_MAX)"
+EMPTY_FAR = "uvec4(GUA_LOWEST, 0u, 0u, 0u)"
+ZERO = "uvec4(0u)"
+ORDERED_PHASES = ("nearest", "dual", "stencil")
+UNIT_BOUNDS, UNIT_OPAQUE, UNIT_RANGE = 4, 5, 6   # method texture units of the geometry programs
+_FETCH_EXT = "#extension GL_EXT_shader_framebuffer_fetch : require\n"
+_INTERLOCK_EXT = "#extension GL_ARB_fragment_shader_interlock : require\n"
+
+
+def _non_negative(v) -> str | None:
+    return None if v >= 0 else f"must be >= 0 (0 = unlimited), got {v}"
+
+
+def ordering_backend(setting: str, caps) -> str | None:
+    """'fetch' or 'interlock' for an ordering setting on this device, or None when it has neither."""
+    fetch = bool(getattr(caps, "framebuffer_fetch", False))
+    if setting == "fetch":
+        return "fetch" if fetch else None
+    if setting == "interlock":
+        return "interlock" if caps.fragment_interlock else None
+    return "fetch" if fetch else ("interlock" if caps.fragment_interlock else None)
+
+
+class PeelingMethod(TransparencyMethod):
+    """Shared machinery: per-pixel state textures, ordered geometry passes, compute steps, counters, stats."""
+
+    exact = True
+    geometry_in_composite = True
+    needs_ordering = True            # geometry passes read-modify-write per-pixel state in primitive order
+    step_method = ""                 # `method` variable of peeling/step.comp.j2
+    has_back = False                 # a back accumulation (dual)
+    has_range = False                # a per-pixel compositing range texture (hybrid, coherent)
+    SETTINGS = {
+        "max_passes": Setting((int,), 0, "cap on geometry passes per frame (0 = unlimited); layers left "
+                              "when it stops are reported as truncated", check=_non_negative),
+        "ordering": Setting((str,), "auto", "how a pass updates per-pixel state in primitive order: "
+                            "'fetch' (EXT_shader_framebuffer_fetch), 'interlock' (ARB_fragment_shader_interlock) "
+                            "or 'auto'", choices=("auto", "fetch", "interlock")),
+    }
+
+    def __init__(self, settings, caps):
+        super().__init__(settings, caps)
+        self.order = ordering_backend(settings.get("ordering", "auto"), caps) if self.needs_ordering else None
+        self._phase = "composite"
+        self._shading: dict = {}
+        self._tex: dict = {}
+        self._size = None
+        self._counters = None
+        self._fbos: dict = {}
+        self._dummy = None
+        self._stats: dict = {}
+        self.passes = 0
+
+    @classmethod
+    def unsupported_reason(cls, caps) -> str | None:
+        """Peeling needs ordered per-pixel read-modify-write (framebuffer fetch or fragment shader interlock)."""
+        if cls.needs_ordering and ordering_backend("auto", caps) is None:
+            return ("needs GL_EXT_shader_framebuffer_fetch or GL_ARB_fragment_shader_interlock to keep the "
+                    "exact (depth, tie) test of each peeling pass in primitive order")
+        return None
+
+    # ------------------------------------------------------------------ storage
+    def texture_specs(self) -> dict[str, tuple[int, str]]:
+        """Per-pixel textures: name -> (components, dtype)."""
+        specs = {"acc_front": (4, "f4"), "bounds": (4, "u4")}
+        if self.has_back:
+            specs["acc_back"] = (4, "f4")
+        if self.has_range:
+            specs["range"] = (4, "u4")
+        return specs
+
+    def slot_names(self) -> list[str]:
+        """Textures holding the ordered per-pixel state of the geometry passes, in slot order."""
+        return []
+
+    def slot_clears(self) -> list[str]:
+        """GLSL values the init step writes into each slot."""
+        return []
+
+    def _alloc(self, frame) -> None:
+        size = (frame.width, frame.height)
+        if self._size == size and self._tex:
+            return
+        self._release_textures()
+        mgl = frame.renderer.moderngl
+        for name, (comps, dtype) in self.texture_specs().items():
+            t = frame.ctx.texture(size, comps, dtype=dtype)
+            t.filter = (mgl.NEAREST, mgl.NEAREST)
+            t.repeat_x = t.repeat_y = False
+            self._tex[name] = t
+        self._size = size
+
+    def _fbo(self, frame, key: str, names: list[str]):
+        """Framebuffer with the named textures as colour targets (cached per resolution)."""
+        if key not in self._fbos:
+            self._fbos[key] = frame.ctx.framebuffer(color_attachments=[self._tex[n] for n in names])
+        return self._fbos[key]
+
+    def _dummy_fbo(self, frame):
+        """A target of frame size for passes whose state lives in images (interlock): nothing is written to it."""
+        if self._dummy is None:
+            rb = frame.ctx.renderbuffer(self._size, 1, dtype="f1")
+            self._dummy = frame.ctx.framebuffer(color_attachments=[rb])
+        return self._dummy
+
+    def _counter_buffer(self, frame):
+        if self._counters is None:
+            self._counters = frame.ctx.buffer(reserve=len(COUNTERS) * 4)
+        return self._counters
+
+    def reset_counters(self, alloc: int = 0) -> None:
+        """Zero the counters (the node allocator starts at `alloc`)."""
+        words = [0] * len(COUNTERS)
+        words[COUNTERS.index("alloc")] = alloc
+        self._counters.write(np.array(words, dtype=np.uint32).tobytes())
+
+    def read_counters(self) -> dict:
+        """Counter words as a dict."""
+        return dict(zip(COUNTERS, np.frombuffer(self._counters.read(), dtype=np.uint32).tolist()))
+
+    # ------------------------------------------------------------------ frame
+    def prepare(self, frame) -> None:
+        """Allocate the per-pixel state and reset it (accumulations, bounds, slots)."""
+        self._shading = frame.shading_vars()
+        self._alloc(frame)
+        self._counter_buffer(frame)
+        self.reset_counters()
+        self.passes = 0
+        self._stats = {"peeled": 0, "composited": 0, "truncated": 0, "saturated_pixels": 0, "iterations": 0}
+        self._warnings: list[str] = []
+        self.step(frame, "init")
+
+    def step(self, frame, name: str) -> None:
+        """Run one compute step of peeling/step.comp.j2 over every pixel."""
+        slots = self.slot_names()
+        prog = frame.renderer.shaders.compute(
+            "peeling/step.comp.j2", method=self.step_method, step=name, has_back=self.has_back,
+            has_range=self.has_range, slot_formats=[self._image_format(n) for n in slots],
+            slot_clear=self.slot_clears(), **self.step_vars(), **self._shading)
+        frame.set_frame_uniforms(prog)
+        frame.bind_lights(prog)
+        if "gua_threshold" in prog:
+            prog["gua_threshold"] = self.composite_threshold()
+        self._bind_step_storage(frame)
+        units = {"acc_front": 0, "acc_back": 1, "bounds": 2, "range": 3}
+        for name_, unit in units.items():
+            if name_ in self._tex:
+                self._tex[name_].bind_to_image(unit, read=True, write=True)
+        for i, n in enumerate(slots):
+            self._tex[n].bind_to_image(4 + i, read=True, write=True)
+        self._counters.bind_to_storage_buffer(4)
+        prog.run(math.ceil(frame.width / 8), math.ceil(frame.height / 8), 1)
+        frame.ctx.memory_barrier()
+
+    def step_vars(self) -> dict:
+        """Extra template variables of the compute steps."""
+        return {}
+
+    def _bind_step_storage(self, frame) -> None:
+        """Bind method buffers the steps read (multi-layer pool)."""
+
+    def _image_format(self, name: str) -> str:
+        comps, dtype = self.texture_specs()[name]
+        return {(4, "u4"): "rgba32ui", (1, "u4"): "r32ui", (4, "f4"): "rgba32f"}[(comps, dtype)]
+
+    def _common_uniforms(self, frame) -> dict:
+        g = frame.resources["gbuffer"]
+        self._tex["bounds"].use(location=UNIT_BOUNDS)
+        g["depth"].use(location=UNIT_OPAQUE)
+        if "range" in self._tex:
+            self._tex["range"].use(location=UNIT_RANGE)
+        self._counters.bind_to_storage_buffer(4)
+        return {"gua_peel_bounds": UNIT_BOUNDS, "gua_peel_opaque": UNIT_OPAQUE, "gua_peel_range": UNIT_RANGE}
+
+    def geometry_pass(self, frame, phase: str, slots: list[str], draws=None, uniforms: dict | None = None,
+                      per_program=None) -> None:
+        """One pass over the transparent draws (or `draws`) that updates the slots in primitive order."""
+        mgl = frame.renderer.moderngl
+        ctx = frame.ctx
+        if self.order == "fetch" and slots:
+            self._fbo(frame, phase, slots).use()
+        else:
+            self._dummy_fbo(frame).use()
+            for i, n in enumerate(slots):
+                self._tex[n].bind_to_image(i, read=True, write=True)
+        ctx.disable(mgl.DEPTH_TEST | mgl.BLEND | mgl.CULL_FACE)
+        all_uniforms = {**self._common_uniforms(frame), **(uniforms or {})}
+        self._phase = phase
+        try:
+            frame.draw_transparent(all_uniforms, per_program=per_program, order=draws)
+        finally:
+            self._phase = "composite"
+        ctx.memory_barrier()
+        self.passes += 1
+
+    def composite_range_pass(self, frame, draws=None) -> None:
+        """Shade the fragments inside each pixel's range in place and blend them under the front accumulation."""
+        mgl = frame.renderer.moderngl
+        ctx = frame.ctx
+        self._fbo(frame, "composite_range", ["acc_front"]).use()
+        ctx.disable(mgl.DEPTH_TEST | mgl.CULL_FACE)
+        ctx.enable(mgl.BLEND)
+        ctx.blend_equation = mgl.FUNC_ADD
+        ctx.blend_func = (mgl.ONE_MINUS_DST_ALPHA, mgl.ONE)   # front-to-back "under", premultiplied
+        self._phase = "composite_range"
+        try:
+            frame.draw_transparent(self._common_uniforms(frame), per_program=frame.bind_lights, order=draws)
+        finally:
+            self._phase = "composite"
+            ctx.disable(mgl.BLEND)
+            ctx.blend_func = mgl.DEFAULT_BLENDING
+        ctx.memory_barrier()
+        self.passes += 1
+
+    def cap_reached(self, needed: int = 1) -> bool:
+        """Would `needed` more geometry passes exceed max_passes?"""
+        cap = int(self.settings.get("max_passes", 0))
+        return cap > 0 and self.passes + needed > cap
+
+    def _truncate(self, left: int) -> None:
+        self._stats["truncated"] = left
+        self.warn(f"{self.id}: max_passes={self.settings['max_passes']} stopped peeling with {left} fragments "
+                  "(at least one more layer) not peeled; the image misses them")
+
+    def warn(self, text: str) -> None:
+        """Add a warning to this frame's stats."""
+        self._warnings.append(text)
+
+    def finish(self, frame) -> bool:
+        """Report passes, fragments, memory use and warnings."""
+        s = self._stats
+        frame.stats["geometry_passes"] = self.passes
+        frame.stats["fragments"] = {"stored": s["peeled"] + s["composited"], **s}
+        frame.stats["peeling"] = {"ordering": self.order, "iterations": s["iterations"]}
+        if self._warnings:
+            frame.stats.setdefault("warnings", []).extend(self._warnings)
+        return False
+
+    # ------------------------------------------------------------------ shaders
+    def fragment_template(self) -> str:
+        """Geometry-phase code, switched by the `peel_phase` variable."""
+        return "peeling/fragment.glsl.j2"
+
+    def resolve_template(self) -> str:
+        """Reads the accumulations."""
+        return "peeling/resolve.glsl.j2"
+
+    def template_vars(self) -> dict:
+        """Phase of the pass being drawn (part of the program key); geometry phases add their layout."""
+        if self._phase == "composite":
+            return {"peel_phase": "composite", "peel_back": self.has_back}
+        v = {"peel_phase": self._phase, "peel_order": self.order or "none",
+             "ord_formats": [self._image_format(n) for n in self.phase_slots(self._phase)],
+             "fragment_interlock": self.order == "interlock" and self._phase in ORDERED_PHASES}
+        if self._phase == "composite_range":
+            v.update(self._shading)
+        v.update(self.step_vars())
+        return v
+
+    def phase_slots(self, phase: str) -> list[str]:
+        """Slot textures a geometry phase reads and writes in order."""
+        return self.slot_names() if phase in ORDERED_PHASES else []
+
+    def extensions(self) -> str:
+        """Framebuffer fetch or interlock, whichever orders the passes here."""
+        return {"fetch": _FETCH_EXT, "interlock": _INTERLOCK_EXT}.get(self.order, "")
+
+    def bind_composite(self, frame, program) -> None:
+        """Accumulations on the method's texture units."""
+        for unit, name in ((4, "acc_front"), (5, "acc_back")):
+            uname = "gua_peel_front" if name == "acc_front" else "gua_peel_back"
+            if name in self._tex and uname in program:
+                self._tex[name].use(location=unit)
+                program[uname] = unit
+
+    def memory(self) -> dict:
+        """Bytes of every texture and buffer; dense per-pixel state is fully used."""
+        out = {}
+        for name, t in self._tex.items():
+            comps, dtype = self.texture_specs()[name]
+            nbytes = t.width * t.height * comps * 4
+            out[f"peel_{name}"] = nbytes
+            out[f"peel_{name}_used"] = nbytes
+        if self._counters is not None:
+            out["peel_counters"] = out["peel_counters_used"] = self._counters.size
+        return out
+
+    def _release_textures(self) -> None:
+        for f in self._fbos.values():
+            f.release()
+        self._fbos = {}
+        if self._dummy is not None:
+            for a in self._dummy.color_attachments:
+                a.release()
+            self._dummy.release()
+            self._dummy = None
+        for t in self._tex.values():
+            t.release()
+        self._tex = {}
+        self._size = None
+
+    def release(self) -> None:
+        """Free textures and buffers."""
+        self._release_textures()
+        if self._counters is not None:
+            self._counters.release()
+            self._counters = None
+
+
+class DepthPeeling(PeelingMethod):
+    """Depth peeling (Everitt 2001): one layer per geometry pass, front to back, until nothing is left."""
+
+    id = "depth_peeling"
+    geometry_passes = "layers"
+    summary = "front-to-back depth peeling, one layer per geometry pass (exact (depth, tie) order)"
+    step_method = "nearest"
+
+    def texture_specs(self):
+        return {**super().texture_specs(), "payload0": (4, "u4"), "payload1": (4, "u4")}
+
+    def slot_names(self):
+        return ["payload0", "payload1"]
+
+    def slot_clears(self):
+        return [EMPTY_NEAR, EMPTY_NEAR_TIE]
+
+    def render_transparent(self, frame) -> None:
+        """Peel until a pass finds every remaining fragment peeled (or the pass cap stops it)."""
+        self._peel_loop(frame, "nearest")
+
+    def _peel_loop(self, frame, phase: str) -> None:
+        s = self._stats
+        left = 0
+        while True:
+            if self.cap_reached():
+                self._truncate(left)
+                break
+            self.reset_counters()
+            self.geometry_pass(frame, phase, self.slot_names())
+            self.step(frame, phase)
+            c = self.read_counters()
+            s["iterations"] += 1
+            s["peeled"] += c["peeled"]
+            s["saturated_pixels"] += c["saturated"]
+            left = c["in_range"] - c["peeled"]   # fragments this pass saw that are still to peel
+            if left == 0:
+                break
+
+class DualDepthPeeling(DepthPeeling):
+    """Dual depth peeling (Bavoil & Myers 2008): nearest and farthest layer per pass, front under, back over."""
+
+    id = "dual_depth_peeling"
+    geometry_passes = "layers/2 + 1"
+    summary = "dual depth peeling: nearest and farthest remaining layer per geometry pass"
+    step_method = "dual"
+    has_back = True
+
+    def texture_specs(self):
+        base = PeelingMethod.texture_specs(self)
+        return {**base, "front0": (4, "u4"), "front1": (4, "u4"), "back0": (4, "u4"), "back1": (4, "u4")}
+
+    def slot_names(self):
+        return ["front0", "front1", "back0", "back1"]
+
+    def slot_clears(self):
+        return [EMPTY_NEAR, EMPTY_NEAR_TIE, EMPTY_FAR, ZERO]
+
+    def render_transparent(self, frame) -> None:
+        """Peel from both ends until they meet (or the pass cap stops it)."""
+        self._peel_loop(frame, "dual")

@@ -1,0 +1,215 @@
+"""Hybrid and coherent layer peeling (Carr, Mech & Miller 2008): peeling that exploits sorted input.
+
+Both composite whole runs of correctly ordered fragments in one geometry pass: such a pass shades
+the fragments of a per-pixel key range in place and lets the hardware blend them under the front
+accumulation in submission order, which is depth order inside the range. Peeling proper is only
+needed where the input is out of order.
+
+Hybrid layer peeling (paper §3, Algorithm 1): draws are split into a sorted set (planar draws whose
+view-depth intervals follow each other front to back in submission order: the longest such chain)
+and the rest. Each iteration peels the nearest layer of the unsorted draws, composites the sorted
+draws between the previous and this layer, then the peeled layer. A fully sorted scene takes one
+geometry pass.
+
+Coherent layer peeling (paper §5): per iteration four counting passes find, per pixel, the nearest
+remaining surface s_n, the nearest earlier-submitted surface behind it (z_min_prev, passes 1-2:
+count z-buffer updates in the stencil, count them back down) and the nearest surface after the
+in-order run that starts at s_n (z_min_post, passes 3-4: count the run, skip it); pass 5
+composites [D(s_n), min(z_min_prev, z_min_post)) in submission order and a step shades the surface
+at the upper bound (the paper's pass 6). Depth and stencil are emulated per pixel in primitive
+order on exact (depth, tie) keys; the stencil is 8 bits like the paper's. More than 255 z-buffer
+updates in pass 1 (255 surfaces submitted in reverse order in front of s_n) saturate it: such
+pixels peel just s_n that iteration (exact, slower) and are counted in stats and warnings.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..pipeline.settings import Setting
+from .peeling import EMPTY_NEAR, EMPTY_NEAR_TIE, ZERO, PeelingMethod
+
+# Emulated GL state of the counting passes (peeling/stencil8.glsl.j2 and coherent_stencil.glsl.j2).
+DEPTH_LESS, DEPTH_GREATER = 1, 2
+ST_ALWAYS, ST_LESS, ST_GREATER, ST_EQUAL = 0, 1, 2, 3
+OP_KEEP, OP_ZERO, OP_INCR, OP_DECR, OP_INVERT = 0, 1, 2, 3, 4
+# pass: (depth func, stencil func, stencil ref, (sfail, zfail, zpass), store payload on zpass)
+COUNTING_PASSES = {
+    1: (DEPTH_LESS, ST_ALWAYS, 0, (OP_KEEP, OP_KEEP, OP_INCR), True),          # count z-buffer updates
+    2: (DEPTH_LESS, ST_LESS, 1, (OP_KEEP, OP_KEEP, OP_DECR), True),            # count back down: z_min_prev
+    3: (DEPTH_GREATER, ST_GREATER, 128, (OP_KEEP, OP_INVERT, OP_INCR), False),  # length of the in-order run
+    4: (DEPTH_LESS, ST_EQUAL, 255, (OP_INCR, OP_KEEP, OP_KEEP), True),         # skip the run: z_min_post
+}
+PASSES_PER_ITERATION = 5
+
+
+def view_depth_interval(draw, view: np.ndarray) -> tuple[float, float]:
+    """Distance range along the view direction of a draw's transformed vertices."""
+    p = np.asarray(draw.mesh.positions, dtype=np.float64)
+    world = p @ np.asarray(draw.world, dtype=np.float64)[:3, :3].T + np.asarray(draw.world)[:3, 3]
+    z = -(world @ view[:3, :3].T + view[:3, 3])[:, 2]
+    return float(z.min()), float(z.max())
+
+
+def is_planar(draw, rel_eps: float = 1e-6) -> bool:
+    """All vertices on one plane: the draw covers a pixel centre at most once (up to coplanar overlap)."""
+    p = np.asarray(draw.mesh.positions, dtype=np.float64)
+    if len(p) <= 3:
+        return True
+    c = p - p.mean(axis=0)
+    _, sv, _ = np.linalg.svd(c, full_matrices=False)
+    return sv[-1] <= rel_eps * max(sv[0], 1e-30)
+
+
+def sorted_chain(intervals: list[tuple[float, float] | None]) -> list[int]:
+    """Indices of the longest subsequence whose intervals follow each other front to back.
+
+    Interval i may follow j when far(j) <= near(i); None marks draws that cannot be in the chain.
+    Patience-style: tails[k] is the smallest far end of a chain of length k + 1.
+    """
+    import bisect
+
+    tails: list[float] = []
+    tail_idx: list[int] = []
+    parent: dict[int, int] = {}
+    for i, iv in enumerate(intervals):
+        if iv is None:
+            continue
+        near, far = iv
+        k = bisect.bisect_right(tails, near)  # chains whose last far end <= near
+        if k > 0:
+            parent[i] = tail_idx[k - 1]
+        if k == len(tails):
+            tails.append(far)
+            tail_idx.append(i)
+        elif far < tails[k]:
+            tails[k] = far
+            tail_idx[k] = i
+    if not tails:
+        return []
+    out = [tail_idx[-1]]
+    while out[-1] in parent:
+        out.append(parent[out[-1]])
+    return out[::-1]
+
+
+class HybridLayerPeeling(PeelingMethod):
+    """Hybrid layer peeling: peel the unsorted draws, composite the sorted ones between peeled layers."""
+
+    id = "hybrid_layer_peeling"
+    geometry_passes = "2 x (unsorted layers + 1)"
+    summary = "hybrid layer peeling: depth-peel unsorted draws, composite sorted draws between layers"
+    step_method = "nearest"
+    has_range = True
+    SETTINGS = {
+        **PeelingMethod.SETTINGS,
+        "sorted_set": Setting((str,), "auto", "which draws are composited as sorted geometry: 'auto' (the "
+                              "longest front-to-back chain of planar draws) or 'none' (plain depth peeling)",
+                              choices=("auto", "none")),
+    }
+
+    def texture_specs(self):
+        return {**super().texture_specs(), "payload0": (4, "u4"), "payload1": (4, "u4")}
+
+    def slot_names(self):
+        return ["payload0", "payload1"]
+
+    def slot_clears(self):
+        return [EMPTY_NEAR, EMPTY_NEAR_TIE]
+
+    def split(self, frame) -> tuple[list, list]:
+        """(sorted draws, unsorted draws) in submission order."""
+        draws = frame.transparent_draws
+        if self.settings["sorted_set"] == "none":
+            return [], draws
+        ivs = [view_depth_interval(d, frame.view) if is_planar(d) else None for d in draws]
+        chain = set(sorted_chain(ivs))
+        return [d for i, d in enumerate(draws) if i in chain], [d for i, d in enumerate(draws) if i not in chain]
+
+    def render_transparent(self, frame) -> None:
+        """Algorithm 1 of the paper, on exact keys; stops once an iteration peels no unsorted layer."""
+        s = self._stats
+        sorted_draws, unsorted = self.split(frame)
+        s.update(sorted_draws=len(sorted_draws), unsorted_draws=len(unsorted))
+        peel = bool(unsorted)
+        left = 0
+        while True:
+            need = int(peel) + int(bool(sorted_draws))
+            if self.cap_reached(need):
+                self._truncate(left)
+                self.warn(f"{self.id}: sorted fragments behind the last peeled layer were not composited")
+                break
+            self.reset_counters()
+            if peel:
+                self.geometry_pass(frame, "nearest", self.slot_names(), draws=unsorted)
+            self.step(frame, "hybrid_range")
+            if sorted_draws:
+                self.composite_range_pass(frame, draws=sorted_draws)
+            self.step(frame, "nearest")
+            c = self.read_counters()
+            s["iterations"] += 1
+            s["peeled"] += c["peeled"]
+            s["composited"] += c["composited"]
+            s["saturated_pixels"] += c["saturated"]
+            left = c["in_range"] - c["peeled"]
+            if c["peeled"] == 0:
+                break  # no unsorted layer: the sorted draws were composited up to the opaque surface
+            peel = peel and left > 0  # no unsorted fragment left: one more compositing pass finishes
+
+
+class CoherentLayerPeeling(PeelingMethod):
+    """Coherent layer peeling: composite each pixel's correctly ordered run found by stencil counting."""
+
+    id = "coherent_layer_peeling"
+    geometry_passes = "5 x iterations"
+    summary = "coherent layer peeling: stencil-counted in-order runs composited per pass (8-bit stencil)"
+    step_method = "coherent"
+    has_range = True
+
+    def texture_specs(self):
+        return {**super().texture_specs(), "depth": (4, "u4"), "stencil": (1, "u4"),
+                "payload0": (4, "u4"), "payload1": (4, "u4")}
+
+    def slot_names(self):
+        return ["depth", "stencil", "payload0", "payload1"]
+
+    def slot_clears(self):
+        return ["uvec4(GUA_INF, GUA_TIE_MAX, 0u, 0u)", ZERO, EMPTY_NEAR, EMPTY_NEAR_TIE]
+
+    def _counting_pass(self, frame, n: int) -> None:
+        depth, sfunc, ref, (sfail, zfail, zpass), capture = COUNTING_PASSES[n]
+        self.geometry_pass(frame, "stencil", self.slot_names(), uniforms={
+            "gua_cl_pass": n, "gua_cl_depth_func": depth, "gua_cl_stencil_func": sfunc, "gua_cl_stencil_ref": ref,
+            "gua_cl_op_sfail": sfail, "gua_cl_op_zfail": zfail, "gua_cl_op_zpass": zpass, "gua_cl_capture": capture})
+        self.step(frame, f"coherent_after_{n}")
+
+    def render_transparent(self, frame) -> None:
+        """Iterations of passes 1-5 until nothing is left in front of the opaque surfaces."""
+        s = self._stats
+        s.update(stencil_overflow_pixels=0)
+        left = None
+        while True:
+            if self.cap_reached(PASSES_PER_ITERATION):
+                self._truncate(left if left is not None else 0)
+                break
+            self.reset_counters()
+            self._counting_pass(frame, 1)
+            c = self.read_counters()
+            if c["in_range"] == 0:
+                break  # nothing left to peel anywhere
+            for n in (2, 3, 4):
+                self._counting_pass(frame, n)
+            self.composite_range_pass(frame)
+            self.step(frame, "coherent_after_5")
+            c = self.read_counters()
+            s["iterations"] += 1
+            s["peeled"] += c["peeled"]
+            s["composited"] += c["composited"]
+            s["saturated_pixels"] += c["saturated"]
+            s["stencil_overflow_pixels"] += c["overflow"]
+            left = c["in_range"] - c["composited"] - c["peeled"]
+            if left == 0:
+                break
+        if s["stencil_overflow_pixels"]:
+            self.warn(f"{self.id}: 8-bit stencil overflow: more than 255 out-of-order surfaces in front of the "
+                      f"nearest one ({s['stencil_overflow_pixels']} pixel-iterations); those pixels peeled one "
+                      "layer per iteration instead (exact, more passes)")
