@@ -19,6 +19,7 @@ import math
 
 import numpy as np
 
+from ..errors import UnsupportedMethodError
 from ..pipeline.settings import Setting
 from .base import TransparencyMethod
 
@@ -68,6 +69,9 @@ class PeelingMethod(TransparencyMethod):
     def __init__(self, settings, caps):
         super().__init__(settings, caps)
         self.order = ordering_backend(settings.get("ordering", "auto"), caps) if self.needs_ordering else None
+        if self.needs_ordering and self.order is None:
+            raise UnsupportedMethodError(f"method '{self.id}' with ordering '{settings.get('ordering')}' cannot run "
+                                         f"on {caps.renderer}: the device lacks that extension")
         self._phase = "composite"
         self._shading: dict = {}
         self._tex: dict = {}

@@ -186,16 +186,19 @@ class CoherentLayerPeeling(PeelingMethod):
         """Iterations of passes 1-5 until nothing is left in front of the opaque surfaces."""
         s = self._stats
         s.update(stencil_overflow_pixels=0)
-        left = None
+        left = 0
         while True:
-            if self.cap_reached(PASSES_PER_ITERATION):
-                self._truncate(left if left is not None else 0)
+            if self.cap_reached(1):
+                self._truncate(left)
                 break
             self.reset_counters()
             self._counting_pass(frame, 1)
             c = self.read_counters()
             if c["in_range"] == 0:
                 break  # nothing left to peel anywhere
+            if self.cap_reached(PASSES_PER_ITERATION - 1):
+                self._truncate(c["in_range"])
+                break
             for n in (2, 3, 4):
                 self._counting_pass(frame, n)
             self.composite_range_pass(frame)

@@ -108,7 +108,7 @@ class MultiLayerDepthPeeling(PeelingMethod):
         """Passes of M layers until one leaves nothing unpeeled (or the cap / a full fixed pool stops it)."""
         s = self._stats
         s.update(pool_overflow=0, pool_grown=0, rejected=0, guard_abandoned=0)
-        left = 0
+        left = stalled = 0
         max_nodes = self._pool_nodes(self.settings["max_pool_mb"])
         while True:
             if self.cap_reached():
@@ -116,8 +116,11 @@ class MultiLayerDepthPeeling(PeelingMethod):
                 break
             self.reset_counters(alloc=1)   # node 0 is the null handle
             self._bind_step_storage(frame)
+            # a pool that can no longer grow cuts each pass at the nearest depth it dropped there
+            can_grow = self.settings["pool_mb"] == "auto" and self.capacity < max_nodes
             self.geometry_pass(frame, "multilayer", [], uniforms={
-                "gua_ml_capacity": self.capacity, "gua_ml_max_steps": int(self.settings["max_steps"])})
+                "gua_ml_capacity": self.capacity, "gua_ml_max_steps": int(self.settings["max_steps"]),
+                "gua_ml_cut": not can_grow})
             self.step(frame, "multilayer")
             c = self.read_counters()
             s["iterations"] += 1
@@ -131,20 +134,21 @@ class MultiLayerDepthPeeling(PeelingMethod):
             left = c["in_range"] - c["peeled"]
             if left == 0:
                 break
+            stalled = stalled + 1 if c["peeled"] == 0 else 0
             if c["overflow"]:
                 # Grow so that the next pass cannot overflow: it allocates at most one node per fragment it sees.
                 want = max(requested, c["in_range"]) + 2
-                if self.settings["pool_mb"] == "auto" and self.capacity < max_nodes:
+                if can_grow:
                     self._alloc_pool(frame, min(max_nodes, int(want * 1.1)))
                     s["pool_grown"] += 1
-                elif c["peeled"] == 0:
+                elif stalled >= 3:
                     s["truncated"] = left
                     self.warn(f"{self.id}: the node pool ({self.capacity - 1} nodes) is too small to make progress; "
                               f"{left} fragments not peeled (raise transparency.pool_mb or use 'auto')")
                     break
-        if s["pool_overflow"]:
+        if s["pool_overflow"] and self.settings["pool_mb"] != "auto":
             self.warn(f"{self.id}: node pool overflowed ({s['pool_overflow']} nodes lacking, "
-                      f"{s['pool_grown']} pool growths); those layers were peeled in later passes")
+                      f"{self.capacity - 1} nodes); those layers were peeled in later passes")
         if s["guard_abandoned"]:
             self.warn(f"{self.id}: {s['guard_abandoned']} insertions hit max_steps; peeled again in later passes")
 
