@@ -347,12 +347,15 @@ class DepthPeeling(PeelingMethod):
     step_method = "nearest"
 
     def texture_specs(self):
+        """Plus the packed payload (8 words) of each pixel's nearest remaining fragment."""
         return {**super().texture_specs(), "payload0": (4, "u4"), "payload1": (4, "u4")}
 
     def slot_names(self):
+        """The payload is the pass's emulated depth buffer (word 0 depth, word 7 tie)."""
         return ["payload0", "payload1"]
 
     def slot_clears(self):
+        """Empty: key (+inf, max tie)."""
         return [EMPTY_NEAR, EMPTY_NEAR_TIE]
 
     def render_transparent(self, frame) -> None:
@@ -360,6 +363,7 @@ class DepthPeeling(PeelingMethod):
         self._peel_loop(frame, "nearest")
 
     def _peel_loop(self, frame, phase: str) -> None:
+        """Geometry pass + step until a pass leaves nothing unpeeled; the cap reports what is left."""
         s = self._stats
         left = 0
         while True:
@@ -381,19 +385,22 @@ class DualDepthPeeling(DepthPeeling):
     """Dual depth peeling (Bavoil & Myers 2008): nearest and farthest layer per pass, front under, back over."""
 
     id = "dual_depth_peeling"
-    geometry_passes = "layers/2 + 1"
+    geometry_passes = "layers/2"
     summary = "dual depth peeling: nearest and farthest remaining layer per geometry pass"
     step_method = "dual"
     has_back = True
 
     def texture_specs(self):
+        """Plus the payloads of the nearest and the farthest remaining fragment."""
         base = PeelingMethod.texture_specs(self)
         return {**base, "front0": (4, "u4"), "front1": (4, "u4"), "back0": (4, "u4"), "back1": (4, "u4")}
 
     def slot_names(self):
+        """Front payload, back payload."""
         return ["front0", "front1", "back0", "back1"]
 
     def slot_clears(self):
+        """Empty front: key +inf; empty back: key -1 (below every fragment)."""
         return [EMPTY_NEAR, EMPTY_NEAR_TIE, EMPTY_FAR, ZERO]
 
     def render_transparent(self, frame) -> None:

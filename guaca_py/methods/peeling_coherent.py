@@ -96,7 +96,7 @@ class HybridLayerPeeling(PeelingMethod):
     """Hybrid layer peeling: peel the unsorted draws, composite the sorted ones between peeled layers."""
 
     id = "hybrid_layer_peeling"
-    geometry_passes = "2 x (unsorted layers + 1)"
+    geometry_passes = "2(unsorted+1)"
     summary = "hybrid layer peeling: depth-peel unsorted draws, composite sorted draws between layers"
     step_method = "nearest"
     has_range = True
@@ -108,12 +108,15 @@ class HybridLayerPeeling(PeelingMethod):
     }
 
     def texture_specs(self):
+        """Plus the payload of the nearest unsorted fragment and the compositing range."""
         return {**super().texture_specs(), "payload0": (4, "u4"), "payload1": (4, "u4")}
 
     def slot_names(self):
+        """The payload is the unsorted peel's emulated depth buffer."""
         return ["payload0", "payload1"]
 
     def slot_clears(self):
+        """Empty: key (+inf, max tie)."""
         return [EMPTY_NEAR, EMPTY_NEAR_TIE]
 
     def split(self, frame) -> tuple[list, list]:
@@ -121,7 +124,9 @@ class HybridLayerPeeling(PeelingMethod):
         draws = frame.transparent_draws
         if self.settings["sorted_set"] == "none":
             return [], draws
-        ivs = [view_depth_interval(d, frame.view) if is_planar(d) else None for d in draws]
+        # vertex displacement moves geometry on the GPU: the CPU interval would not bound it
+        ivs = [view_depth_interval(d, frame.view) if is_planar(d) and not d.material.methods.get("displacement")
+               else None for d in draws]
         chain = set(sorted_chain(ivs))
         return [d for i, d in enumerate(draws) if i in chain], [d for i, d in enumerate(draws) if i not in chain]
 
@@ -160,22 +165,26 @@ class CoherentLayerPeeling(PeelingMethod):
     """Coherent layer peeling: composite each pixel's correctly ordered run found by stencil counting."""
 
     id = "coherent_layer_peeling"
-    geometry_passes = "5 x iterations"
+    geometry_passes = "5/iteration"
     summary = "coherent layer peeling: stencil-counted in-order runs composited per pass (8-bit stencil)"
     step_method = "coherent"
     has_range = True
 
     def texture_specs(self):
+        """Plus the emulated depth (key) and 8-bit stencil, and the upper surface's payload."""
         return {**super().texture_specs(), "depth": (4, "u4"), "stencil": (1, "u4"),
                 "payload0": (4, "u4"), "payload1": (4, "u4")}
 
     def slot_names(self):
+        """State the counting passes read and write in primitive order."""
         return ["depth", "stencil", "payload0", "payload1"]
 
     def slot_clears(self):
+        """Depth cleared to far, stencil 0, no payload."""
         return ["uvec4(GUA_INF, GUA_TIE_MAX, 0u, 0u)", ZERO, EMPTY_NEAR, EMPTY_NEAR_TIE]
 
     def _counting_pass(self, frame, n: int) -> None:
+        """Counting pass n (1-4) with the paper's depth/stencil state, then its step."""
         depth, sfunc, ref, (sfail, zfail, zpass), capture = COUNTING_PASSES[n]
         self.geometry_pass(frame, "stencil", self.slot_names(), uniforms={
             "gua_cl_pass": n, "gua_cl_depth_func": depth, "gua_cl_stencil_func": sfunc, "gua_cl_stencil_ref": ref,

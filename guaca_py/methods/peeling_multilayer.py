@@ -62,6 +62,7 @@ class MultiLayerDepthPeeling(PeelingMethod):
         return {"ml_layers": self.layers}
 
     def phase_slots(self, phase):
+        """No ordered per-pixel state: the slots live in a buffer updated with atomics."""
         return []
 
     # ------------------------------------------------------------------ storage
