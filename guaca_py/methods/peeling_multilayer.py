@@ -91,8 +91,10 @@ class MultiLayerDepthPeeling(PeelingMethod):
         """Per-pixel state and the node pool (one node per pixel and layer to start with)."""
         pool = self.settings["pool_mb"]
         if pool == "auto":
-            cap = self.capacity if self._pixels == frame.pixel_count and self.capacity else \
-                max(1024, frame.pixel_count * self.layers + 1)
+            start = max(1024, frame.pixel_count * self.layers + 1)
+            cap = self.capacity if self._pixels == frame.pixel_count and self.capacity else start
+            if self._used_nodes and self._used_nodes + 1 < cap // 4:
+                cap = max(start, int(self._used_nodes * 1.15) + 2)  # the last frame used under a quarter
         else:
             cap = self._pool_nodes(pool)
         self._alloc_pool(frame, cap)
