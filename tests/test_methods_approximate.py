@@ -223,3 +223,17 @@ def test_lit_fragments_shaded_like_the_composite(renderer_factory):
 def test_bad_settings_rejected(renderer_factory, mid, settings):
     with pytest.raises(ConfigError):
         renderer_factory("exact", method=mid, method_overrides=settings)
+
+
+def test_kbuffer_interlock_needs_the_extension(renderer_factory, gl_context):
+    from guaca_py import UnsupportedMethodError
+    from guaca_py.context import detect_capabilities
+
+    caps = detect_capabilities(gl_context)
+    if caps.fragment_interlock:
+        r = renderer_factory("exact", method="kbuffer", method_overrides={"lock": "interlock"})
+        assert r.method.lock == "interlock" and "interlock" in r.method.extensions()
+    else:
+        with pytest.raises(UnsupportedMethodError, match="interlock"):
+            renderer_factory("exact", method="kbuffer", method_overrides={"lock": "interlock"})
+        assert renderer_factory("exact", method="kbuffer").method.lock == "spin"

