@@ -1,8 +1,9 @@
 """Every transparency method the device runs, side by side: GPU time per stage, passes, memory, error.
 
-Usage: python benchmarks/methods_table.py OUTDIR [--size 1024] [--frames 10] [--warmup 3]
+Usage: python benchmarks/methods_table.py OUTDIR [--size 1024] [--frames 10] [--warmup 5]
                                           [--methods ID ...] [--ref-size 192]
-Timing: the demo scene through pipelines/default.yaml (median of --frames after --warmup).
+Timing: the demo scene through pipelines/default.yaml (median of --frames after --warmup),
+all methods interleaved frame by frame so clock drift cannot favour any of them.
 Error: (a) the demo scene, lit, linear output of pipelines/exact.yaml, against presort_lf
 (exact, itself verified against the CPU reference) on the same device; (b) an unlit layered
 scene (16 layers, shuffled submission) against the float64 CPU reference (tests/reference.py),
@@ -21,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
 from guaca_py import GuacaError, Renderer  # noqa: E402
-from guaca_py.benchmarking import measure  # noqa: E402
+from guaca_py.benchmarking import measure_interleaved  # noqa: E402
 from guaca_py.context import create_context  # noqa: E402
 from guaca_py.methods import method_class, method_ids  # noqa: E402
 from guaca_py.scene.loader import demo_scene  # noqa: E402
@@ -39,7 +40,7 @@ def main(argv=None) -> int:
     ap.add_argument("out", type=Path)
     ap.add_argument("--size", type=int, default=1024)
     ap.add_argument("--frames", type=int, default=10)
-    ap.add_argument("--warmup", type=int, default=3)
+    ap.add_argument("--warmup", type=int, default=5)
     ap.add_argument("--ref-size", type=int, default=192)
     ap.add_argument("--methods", nargs="*")
     args = ap.parse_args(argv)
@@ -54,24 +55,42 @@ def main(argv=None) -> int:
     exact_r = Renderer("exact", ctx=ctx, method="presort_lf")
     exact_demo = exact_r.render(demo, args.size, args.size).linear
     exact_r.release()
-    rows = []
+    rows, timed = [], {}
     for mid in args.methods or method_ids():
         cls = method_class(mid)
         row = {"method": mid, "exact": cls.exact, "declared_geometry_passes": cls.geometry_passes}
+        rows.append(row)
         reason = cls.unsupported_reason(caps)
         if reason:
             row["skipped"] = reason
-            rows.append(row)
             print(f"{mid:<26} skipped: {reason}", flush=True)
             continue
         try:
-            r = Renderer("default", ctx=ctx, method=mid)
-            m = measure(r, demo, args.size, args.size, args.warmup, args.frames)
-            s = m.last.stats
-            row.update(pass_ms=m.pass_ms, total_ms=m.total_ms, timer=m.timer,
-                       geometry_passes=s.get("geometry_passes", 1), fragments=s.get("fragments", {}),
-                       memory=s.get("memory", {}), warnings=s.get("warnings", []))
-            r.release()
+            timed[mid] = Renderer("default", ctx=ctx, method=mid)
+        except GuacaError as exc:
+            row["failed"] = str(exc)
+    # Timing first, all methods interleaved frame by frame: the GPU clock drifts while the
+    # CPU is busy (reference compositing, readbacks), and interleaving spreads any drift
+    # evenly over the methods instead of penalising whichever came last.
+    try:
+        ms = measure_interleaved(timed, demo, args.size, args.size, args.warmup, args.frames)
+    except GuacaError as exc:
+        raise SystemExit(f"timing failed: {exc}")
+    for row in rows:
+        mid = row["method"]
+        if mid not in ms:
+            continue
+        m = ms[mid]
+        s = m.last.stats
+        row.update(pass_ms=m.pass_ms, total_ms=m.total_ms, timer=m.timer,
+                   geometry_passes=s.get("geometry_passes", 1), fragments=s.get("fragments", {}),
+                   memory=s.get("memory", {}), warnings=s.get("warnings", []))
+        timed.pop(mid).release()
+    for row in rows:
+        mid = row["method"]
+        if "pass_ms" not in row:
+            continue
+        try:
             r = Renderer("exact", ctx=ctx, method=mid)
             row["demo_rmse_255"], row["demo_max_255"] = linear_error(r.render(demo, args.size, args.size).linear, exact_demo)
             e = compare(r.render(layered, rs, rs).image, ref_img, ref_mask)
@@ -79,13 +98,16 @@ def main(argv=None) -> int:
             r.release()
         except GuacaError as exc:
             row["failed"] = str(exc)
-        rows.append(row)
+            del row["pass_ms"]
         print(f"{mid:<26} " + (f"failed: {row['failed']}" if "failed" in row else
               f"{row['total_ms']:8.3f} ms  passes {row['geometry_passes']}  "
               f"err(demo) {row['demo_rmse_255']:.3f}/{row['demo_max_255']:.1f}  "
               f"err(ref) {row['ref_rmse_255']:.3f}/{row['ref_max_255']:.1f}"), flush=True)
+    post = [sum(v for k, v in r["pass_ms"].items() if k in ("tone_mapping", "fxaa")) for r in rows if "pass_ms" in r]
     meta = {"device": caps.renderer, "size": args.size, "frames": args.frames, "warmup": args.warmup,
-            "ref_size": rs, "insertion_path": caps.insertion_path}
+            "ref_size": rs, "insertion_path": caps.insertion_path, "timing": "interleaved",
+            # identical post passes in every row: their spread shows how steady the clock was
+            "post_ms_min": min(post, default=0.0), "post_ms_max": max(post, default=0.0)}
     (args.out / "methods.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=2))
     md = table(rows, meta)
     (args.out / "methods.md").write_text(md)
@@ -105,7 +127,8 @@ def _mem_alloc(mem: dict) -> int:
 def table(rows, meta) -> str:
     """Markdown table of the measured rows."""
     out = [f"Device: {meta['device']} · {meta['size']}×{meta['size']} demo scene · median of {meta['frames']} "
-           f"frames after {meta['warmup']} warm-up · errors in 1/255 (RMSE / max)", "",
+           f"frames after {meta['warmup']} warm-up, methods interleaved · post passes (identical in every row) "
+           f"{meta['post_ms_min']:.3f}–{meta['post_ms_max']:.3f} ms · errors in 1/255 (RMSE / max)", "",
            "| method | kind | geometry ms | lights ms | composite ms | post ms | total ms | geo passes | "
            "memory alloc MiB | err demo vs exact | err unlit vs CPU ref |",
            "|---|---|---|---|---|---|---|---|---|---|---|"]

@@ -20,15 +20,24 @@ class Measurement:
 
 def measure(renderer, scene, width: int, height: int, warmup: int = 3, frames: int = 10) -> Measurement:
     """Render `warmup` frames untimed, then `frames` timed ones; per-pass medians in ms."""
+    return measure_interleaved({"": renderer}, scene, width, height, warmup, frames)[""]
+
+
+def measure_interleaved(renderers: dict, scene, width: int, height: int, warmup: int = 5,
+                        frames: int = 10) -> dict[str, Measurement]:
+    """Like measure() for several renderers at once, one frame of each per round."""
     for _ in range(warmup):
-        renderer.render(scene, width, height)
-    samples: dict[str, list[float]] = {}
-    totals = []
-    last = None
+        for r in renderers.values():
+            r.render(scene, width, height)
+    samples: dict[str, dict[str, list[float]]] = {k: {} for k in renderers}
+    totals: dict[str, list[float]] = {k: [] for k in renderers}
+    last: dict[str, FrameResult] = {}
     for _ in range(max(1, frames)):
-        last = renderer.render(scene, width, height)
-        for name, p in last.stats["passes"].items():
-            samples.setdefault(name, []).append(p["ms"])
-        totals.append(sum(p["ms"] for p in last.stats["passes"].values()))
-    return Measurement({k: statistics.median(v) for k, v in samples.items()}, statistics.median(totals),
-                       len(totals), last.stats.get("timer", "?"), last)
+        for key, r in renderers.items():
+            res = last[key] = r.render(scene, width, height)
+            for name, p in res.stats["passes"].items():
+                samples[key].setdefault(name, []).append(p["ms"])
+            totals[key].append(sum(p["ms"] for p in res.stats["passes"].values()))
+    return {k: Measurement({n: statistics.median(v) for n, v in samples[k].items()},
+                           statistics.median(totals[k]), len(totals[k]), last[k].stats.get("timer", "?"), last[k])
+            for k in renderers}
