@@ -22,7 +22,7 @@ sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 from guaca_py import GuacaError, Renderer  # noqa: E402
 from guaca_py.context import create_context  # noqa: E402
 from guaca_py.methods import method_class  # noqa: E402
-from reference import compare, edge_mask, layered_quads_scene, render_reference, scene_triangles  # noqa: E402
+from reference import compare, layered_quads_scene, reference_of  # noqa: E402
 
 # (label, method id, settings, counter that reports the limit being hit)
 CONFIGS = [
@@ -49,9 +49,7 @@ def run(out: Path, size: int, layer_counts: list[int]) -> dict:
     renderers = {}
     for n in layer_counts:
         scene = layered_quads_scene(n_layers=n, order="shuffled", seed=5)
-        tris, rgb, alpha = scene_triangles(scene)
-        ref, layers = render_reference(tris, rgb, alpha, scene.camera, size, size, scene.background)
-        mask = edge_mask(tris, scene.camera, size, size)
+        ref, mask, layers = reference_of(scene, size, size)
         for label, mid, settings, counter in CONFIGS:
             row = {"config": label, "method": mid, "layers": n, "max_depth_complexity": int(layers.max())}
             try:

@@ -33,6 +33,20 @@ def renderer_factory(gl_context):
         r.release()
 
 
+@pytest.fixture(scope="module")
+def renderers(renderer_factory):
+    """One exact-pipeline renderer per (method, settings) in a module: programs compile once."""
+    made: dict = {}
+
+    def get(method, **overrides):
+        key = (method, tuple(sorted(overrides.items())))
+        if key not in made:
+            made[key] = renderer_factory("exact", method=method, method_overrides=overrides or None)
+        return made[key]
+
+    return get
+
+
 def unit_quad(w: float = 2.0, h: float = 2.0) -> MeshData:
     """Quad in the XY plane facing +Z."""
     p = np.array([[-w / 2, -h / 2, 0], [w / 2, -h / 2, 0], [w / 2, h / 2, 0], [-w / 2, h / 2, 0]], np.float32)

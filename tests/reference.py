@@ -228,6 +228,23 @@ def compare(gpu_rgb_uint8: np.ndarray, ref_float: np.ndarray, mask_exclude: np.n
     }
 
 
+def reference_of(scene: Scene, width: int, height: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Reference image, the exclusion mask of edge pixels and per-pixel layer counts of a scene."""
+    tris, rgb, alpha = scene_triangles(scene)
+    img, layers = render_reference(tris, rgb, alpha, scene.camera, width, height, scene.background)
+    return img, edge_mask(tris, scene.camera, width, height), layers
+
+
+class ReferenceCache(dict):
+    """reference_of() results by a caller's key: several methods are compared on one scene."""
+
+    def of(self, key, scene: Scene, width: int, height: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The cached reference for (key, size), computed on first use."""
+        if (key, width, height) not in self:
+            self[key, width, height] = reference_of(scene, width, height)
+        return self[key, width, height]
+
+
 # ----------------------------------------------------------------------------- scene builders
 
 

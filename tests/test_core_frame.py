@@ -7,16 +7,15 @@ import numpy as np
 import pytest
 
 from conftest import quad_node, simple_scene
-from reference import compare, edge_mask, interpenetrating_scene, layered_quads_scene, render_reference, scene_triangles
+import reference
+from reference import compare, interpenetrating_scene, layered_quads_scene
 
 SIZE = 96
 
 
 def reference_of(scene, w=SIZE, h=SIZE):
-    """Reference image and the exclusion mask of edge pixels."""
-    tris, rgb, alpha = scene_triangles(scene)
-    img, layers = render_reference(tris, rgb, alpha, scene.camera, w, h, scene.background)
-    return img, edge_mask(tris, scene.camera, w, h), layers
+    """Reference image, edge exclusion mask and per-pixel layer counts at this module's size."""
+    return reference.reference_of(scene, w, h)
 
 
 @pytest.mark.parametrize("method", ["presort_lf", "presort_lf_et"])

@@ -10,7 +10,8 @@ import pytest
 from conftest import quad_node, simple_scene
 from guaca_py.errors import ConfigError
 from guaca_py.scene.graph import Light, MaterialInstance
-from reference import compare, edge_mask, interpenetrating_scene, layered_quads_scene, render_reference, scene_triangles
+import reference
+from reference import compare, interpenetrating_scene, layered_quads_scene
 
 SIZE = 96
 EXACT_255 = 2.0
@@ -36,10 +37,8 @@ CONFIGS = [
 
 
 def reference_of(scene, w=SIZE, h=SIZE):
-    """Reference image, edge-pixel exclusion mask and per-pixel layer counts."""
-    tris, rgb, alpha = scene_triangles(scene)
-    img, layers = render_reference(tris, rgb, alpha, scene.camera, w, h, scene.background)
-    return img, edge_mask(tris, scene.camera, w, h), layers
+    """Reference image, edge exclusion mask and per-pixel layer counts at this module's size."""
+    return reference.reference_of(scene, w, h)
 
 
 @pytest.fixture(scope="module")

@@ -8,35 +8,17 @@ import numpy as np
 import pytest
 
 from conftest import quad_node, simple_scene
-from reference import compare, edge_mask, interpenetrating_scene, layered_quads_scene, render_reference, scene_triangles
+from reference import ReferenceCache, compare, interpenetrating_scene, layered_quads_scene
 
 SIZE = 64
 METHODS = ["depth_peeling", "dual_depth_peeling", "multilayer_depth_peeling", "hybrid_layer_peeling",
            "coherent_layer_peeling"]
-_REFS: dict = {}
+_REFS = ReferenceCache()
 
 
 def reference_of(key, scene, w=SIZE, h=SIZE):
-    """Reference image, edge exclusion mask and layer counts (cached: the methods share scenes)."""
-    if key not in _REFS:
-        tris, rgb, alpha = scene_triangles(scene)
-        img, layers = render_reference(tris, rgb, alpha, scene.camera, w, h, scene.background)
-        _REFS[key] = img, edge_mask(tris, scene.camera, w, h), layers
-    return _REFS[key]
-
-
-@pytest.fixture(scope="module")
-def renderers(renderer_factory):
-    """One exact-pipeline renderer per (method, settings): programs compile once."""
-    made: dict = {}
-
-    def get(method, **overrides):
-        key = (method, tuple(sorted(overrides.items())))
-        if key not in made:
-            made[key] = renderer_factory("exact", method=method, method_overrides=overrides or None)
-        return made[key]
-
-    return get
+    """Reference image, edge exclusion mask and layer counts (cached: several methods share a scene)."""
+    return _REFS.of(key, scene, w, h)
 
 
 def planes(n, alpha, order, size=12.0, z0=2.0, z1=-3.0):

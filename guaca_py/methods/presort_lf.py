@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 
-from ..pipeline.settings import NUMBER, Setting
+from ..pipeline.settings import Setting
 from .base import TransparencyMethod
 
 NODE_PAYLOAD_BYTES = 32          # depth + 7 payload words, see abuffer/layout.glsl.j2
