@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import UnsupportedMethodError
 from ..pipeline.settings import Setting, positive
+from .base import LOCK_SETTING, resolve_lock
 from .presort_lf import COUNTERS, NODE_PAYLOAD_BYTES, PreSortLF
 
 # counter words after presort_lf's, in the order of abuffer/variants_common.glsl.j2
@@ -89,20 +89,14 @@ class PreSortCS(ABufferVariant):
     summary = "sorted insertion in a per-pixel critical section (fragment shader interlock or spin lock)"
     SETTINGS = {
         **PreSortLF.SETTINGS,
-        "lock": Setting((str,), "auto", "critical section: 'interlock' (ARB_fragment_shader_interlock), "
-                        "'spin' (per-pixel spin lock) or 'auto' (interlock where the device has it)",
-                        choices=("auto", "interlock", "spin")),
+        "lock": LOCK_SETTING,
         "max_spin": Setting((int,), 65536, "lock attempts before a fragment gives up (counted, reported)",
                             check=positive),
     }
 
     def __init__(self, settings, caps):
         super().__init__(settings, caps)
-        lock = settings["lock"]
-        if lock == "interlock" and not caps.fragment_interlock:
-            raise UnsupportedMethodError(f"method '{self.id}' with lock 'interlock' cannot run on {caps.renderer}: "
-                                         "no GL_ARB_fragment_shader_interlock (use lock 'spin' or 'auto')")
-        self.lock = lock if lock != "auto" else ("interlock" if caps.fragment_interlock else "spin")
+        self.lock = resolve_lock(self.id, settings["lock"], caps)
         self._use_32bit_links()  # the critical section orders the list: no 64-bit atomics needed
         self.extra_slots = 1 if self.lock == "spin" else 0  # one lock word per pixel
 

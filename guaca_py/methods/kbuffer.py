@@ -9,10 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import UnsupportedMethodError
 from ..pipeline.settings import Setting
 from .approximate import fill_uint_buffer
-from .base import TransparencyMethod
+from .base import LOCK_SETTING, TransparencyMethod, resolve_lock
 
 SLOT_BYTES = 32          # the shared 8-word fragment payload (common/payload_pack.glsl.j2)
 HEAD_BYTES = 8           # lock + fragment count
@@ -36,20 +35,12 @@ class KBuffer(TransparencyMethod):
                             choices=("merge", "drop")),
         "max_spins": Setting((int,), 65536, "bound on lock attempts per fragment (a fragment that never "
                              "wins the lock is dropped and counted)", check=lambda v: None if v > 0 else "must be > 0"),
-        "lock": Setting((str,), "auto", "critical section: 'interlock' (ARB_fragment_shader_interlock), "
-                        "'spin' (per-pixel spin lock) or 'auto' (interlock where the device has it)",
-                        choices=("auto", "interlock", "spin")),
+        "lock": LOCK_SETTING,
     }
 
     def __init__(self, settings, caps):
         super().__init__(settings, caps)
-        lock = settings["lock"]
-        if lock == "interlock" and not caps.fragment_interlock:
-            raise UnsupportedMethodError(f"method '{self.id}' with lock 'interlock' cannot run on {caps.renderer}: "
-                                         "no GL_ARB_fragment_shader_interlock (use lock 'spin' or 'auto')")
-        # a contended spin lock serializes badly on GPUs (measured: 854 ms geometry at 1024² on
-        # the demo); the ordered interlock is the hardware's critical section
-        self.lock = lock if lock != "auto" else ("interlock" if caps.fragment_interlock else "spin")
+        self.lock = resolve_lock(self.id, settings["lock"], caps)
         self._heads = self._slots = self._counters = None
         self._pixels = 0
         self._filled = 0

@@ -338,16 +338,11 @@ class PeelingMethod(TransparencyMethod):
             self._counters = None
 
 
-class DepthPeeling(PeelingMethod):
-    """Depth peeling (Everitt 2001): one layer per geometry pass, front to back, until nothing is left."""
-
-    id = "depth_peeling"
-    geometry_passes = "layers"
-    summary = "front-to-back depth peeling, one layer per geometry pass (exact (depth, tie) order)"
-    step_method = "nearest"
+class NearestPayloadPeel(PeelingMethod):
+    """A peel whose emulated depth buffer is the packed payload (8 words) of each pixel's nearest fragment."""
 
     def texture_specs(self):
-        """Plus the packed payload (8 words) of each pixel's nearest remaining fragment."""
+        """Plus the payload of each pixel's nearest remaining fragment."""
         return {**super().texture_specs(), "payload0": (4, "u4"), "payload1": (4, "u4")}
 
     def slot_names(self):
@@ -357,6 +352,15 @@ class DepthPeeling(PeelingMethod):
     def slot_clears(self):
         """Empty: key (+inf, max tie)."""
         return [EMPTY_NEAR, EMPTY_NEAR_TIE]
+
+
+class DepthPeeling(NearestPayloadPeel):
+    """Depth peeling (Everitt 2001): one layer per geometry pass, front to back, until nothing is left."""
+
+    id = "depth_peeling"
+    geometry_passes = "layers"
+    summary = "front-to-back depth peeling, one layer per geometry pass (exact (depth, tie) order)"
+    step_method = "nearest"
 
     def render_transparent(self, frame) -> None:
         """Peel until a pass finds every remaining fragment peeled (or the pass cap stops it)."""

@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..pipeline.settings import Setting
-from .peeling import EMPTY_NEAR, EMPTY_NEAR_TIE, ZERO, PeelingMethod
+from .peeling import EMPTY_NEAR, EMPTY_NEAR_TIE, ZERO, NearestPayloadPeel, PeelingMethod
 
 # Emulated GL state of the counting passes (peeling/stencil8.glsl.j2 and coherent_stencil.glsl.j2).
 DEPTH_LESS, DEPTH_GREATER = 1, 2
@@ -92,7 +92,7 @@ def sorted_chain(intervals: list[tuple[float, float] | None]) -> list[int]:
     return out[::-1]
 
 
-class HybridLayerPeeling(PeelingMethod):
+class HybridLayerPeeling(NearestPayloadPeel):
     """Hybrid layer peeling: peel the unsorted draws, composite the sorted ones between peeled layers."""
 
     id = "hybrid_layer_peeling"
@@ -106,18 +106,6 @@ class HybridLayerPeeling(PeelingMethod):
                               "longest front-to-back chain of planar draws) or 'none' (plain depth peeling)",
                               choices=("auto", "none")),
     }
-
-    def texture_specs(self):
-        """Plus the payload of the nearest unsorted fragment and the compositing range."""
-        return {**super().texture_specs(), "payload0": (4, "u4"), "payload1": (4, "u4")}
-
-    def slot_names(self):
-        """The payload is the unsorted peel's emulated depth buffer."""
-        return ["payload0", "payload1"]
-
-    def slot_clears(self):
-        """Empty: key (+inf, max tie)."""
-        return [EMPTY_NEAR, EMPTY_NEAR_TIE]
 
     def split(self, frame) -> tuple[list, list]:
         """(sorted draws, unsorted draws) in submission order."""
