@@ -120,12 +120,15 @@ def main(argv=None) -> int:
     return 0
 
 
-def _mem_used(mem: dict) -> int:
-    return sum(v for k, v in mem.items() if k.endswith("_used") or k == "gbuffer")
-
-
-def _mem_alloc(mem: dict) -> int:
-    return sum(v for k, v in mem.items() if not k.endswith("_used") and not k.endswith("node_bytes"))
+def _mem_alloc_used(mem: dict) -> tuple[int, int]:
+    """Bytes allocated and bytes the frame used; a buffer without a `_used` figure counts as full."""
+    alloc = used = 0
+    for k, v in mem.items():
+        if k.endswith("_used") or k.endswith("node_bytes"):
+            continue
+        alloc += v
+        used += mem.get(k + "_used", v)
+    return alloc, used
 
 
 def table(rows, meta) -> str:
@@ -136,7 +139,7 @@ def table(rows, meta) -> str:
            "Geometry ms is the G-buffer pass plus any pass that stores fragments; peeling and blending methods "
            "draw their transparent geometry inside the composite pass, so compare totals.", "",
            "| method | kind | geometry ms | lights ms | composite ms | post ms | total ms | geo passes | "
-           "memory alloc MiB | err demo vs exact | err unlit vs CPU ref |",
+           "memory MiB alloc / used | err demo vs exact | err unlit vs CPU ref |",
            "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         if "pass_ms" not in r:
@@ -147,7 +150,7 @@ def table(rows, meta) -> str:
         post = sum(v for k, v in p.items() if k not in ("geometry", "light_culling", "composite"))
         out.append(f"| {r['method']} | {'exact' if r['exact'] else 'approx'} | {p.get('geometry', 0):.3f} | "
                    f"{p.get('light_culling', 0):.3f} | {p.get('composite', 0):.3f} | {post:.3f} | {r['total_ms']:.3f} | "
-                   f"{r['geometry_passes']} | {_mem_alloc(r['memory']) / 2**20:.1f} | "
+                   f"{r['geometry_passes']} | {_mem_alloc_used(r['memory'])[0] / 2**20:.1f} / {_mem_alloc_used(r['memory'])[1] / 2**20:.1f} | "
                    f"{r['demo_rmse_255']:.2f} / {r['demo_max_255']:.0f} | {r['ref_rmse_255']:.2f} / {r['ref_max_255']:.0f} |")
     return "\n".join(out) + "\n"
 

@@ -190,6 +190,21 @@ def test_multilayer_auto_pool_grows(renderers):
     assert compare(frame.image, ref, mask)["max_abs_255"] <= 2.0
 
 
+def test_multilayer_auto_pool_shrinks_to_the_need(renderer_factory):
+    # the first pool is one node per pixel and layer; a small shallow scene uses a fraction of it, so the
+    # next frame holds about what was used, and a deeper scene after that grows it again
+    r = renderer_factory("exact", method="multilayer_depth_peeling")
+    shallow, deep = planes(3, 0.3, "shuffled", size=1.5), planes(10, 0.25, "back_to_front")
+    first = r.render(shallow, SIZE, SIZE).stats["memory"]
+    second = r.render(shallow, SIZE, SIZE).stats["memory"]
+    assert second["peel_ml_pool"] < first["peel_ml_pool"] // 2
+    assert second["peel_ml_pool_used"] <= second["peel_ml_pool"] <= 1.2 * first["peel_ml_pool_used"] + 4096 * 32
+    ref, mask, _ = reference_of(("planes10",), deep)
+    frame = r.render(deep, SIZE, SIZE)
+    assert frame.stats["fragments"]["pool_grown"] >= 1 and frame.stats["fragments"]["truncated"] == 0
+    assert compare(frame.image, ref, mask)["max_abs_255"] <= 2.0
+
+
 def test_hybrid_split_keeps_longest_sorted_chain():
     from guaca_py.methods.peeling_coherent import sorted_chain
 

@@ -94,7 +94,9 @@ class MultiLayerDepthPeeling(PeelingMethod):
             start = max(1024, frame.pixel_count * self.layers + 1)
             cap = self.capacity if self._pixels == frame.pixel_count and self.capacity else start
             if self._used_nodes and self._used_nodes + 1 < cap // 4:
-                cap = max(start, int(self._used_nodes * 1.15) + 2)  # the last frame used under a quarter
+                # the last frame used under a quarter: hold what the scene needs (a deeper frame
+                # grows the pool again between its passes, no frame is lost)
+                cap = max(1024, int(self._used_nodes * 1.15) + 2)
         else:
             cap = self._pool_nodes(pool)
         self._alloc_pool(frame, cap)
