@@ -13,14 +13,17 @@ from __future__ import annotations
 
 import argparse
 import json
+import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
+sys.path[:0] = [str(ROOT), str(ROOT / "tests"), str(ROOT / "benchmarks")]
 
+from gpu_clock import ClockSampler  # noqa: E402
 from guaca_py import GuacaError, Renderer  # noqa: E402
 from guaca_py.benchmarking import measure_interleaved  # noqa: E402
 from guaca_py.context import create_context  # noqa: E402
@@ -42,6 +45,10 @@ def main(argv=None) -> int:
     ap.add_argument("--frames", type=int, default=10)
     ap.add_argument("--warmup", type=int, default=5)
     ap.add_argument("--ref-size", type=int, default=192)
+    ap.add_argument("--burst", type=int, default=1, help="interleaved: frames of one method per round, the last timed")
+    ap.add_argument("--timing", choices=("isolated", "interleaved"), default="isolated",
+                    help="isolated: each method in its own `guaca render` process, as a user runs it; "
+                         "interleaved: one process, one frame of each method per round")
     ap.add_argument("--methods", nargs="*")
     ap.add_argument("--replot", action="store_true", help="only rebuild the table and chart from OUT/methods.json")
     args = ap.parse_args(argv)
@@ -59,7 +66,7 @@ def main(argv=None) -> int:
     exact_r = Renderer("exact", ctx=ctx, method="presort_lf")
     exact_demo = exact_r.render(demo, args.size, args.size).linear
     exact_r.release()
-    rows, timed = [], {}
+    rows, runnable = [], []
     for mid in args.methods or method_ids():
         cls = method_class(mid)
         row = {"method": mid, "exact": cls.exact, "declared_geometry_passes": cls.geometry_passes}
@@ -68,28 +75,14 @@ def main(argv=None) -> int:
         if reason:
             row["skipped"] = reason
             print(f"{mid:<26} skipped: {reason}", flush=True)
-            continue
-        try:
-            timed[mid] = Renderer("default", ctx=ctx, method=mid)
-        except GuacaError as exc:
-            row["failed"] = str(exc)
-    # Timing first, all methods interleaved frame by frame: the GPU clock drifts while the
-    # CPU is busy (reference compositing, readbacks), and interleaving spreads any drift
-    # evenly over the methods instead of penalising whichever came last.
-    try:
-        ms = measure_interleaved(timed, demo, args.size, args.size, args.warmup, args.frames)
-    except GuacaError as exc:
-        raise SystemExit(f"timing failed: {exc}")
+        else:
+            runnable.append(mid)
+    # Timing first, before the CPU-heavy error phase.
+    timing = time_isolated if args.timing == "isolated" else time_interleaved
+    with ClockSampler() as clock:
+        results = timing(runnable, ctx, demo, args)
     for row in rows:
-        mid = row["method"]
-        if mid not in ms:
-            continue
-        m = ms[mid]
-        s = m.last.stats
-        row.update(pass_ms=m.pass_ms, total_ms=m.total_ms, timer=m.timer,
-                   geometry_passes=s.get("geometry_passes", 1), fragments=s.get("fragments", {}),
-                   memory=s.get("memory", {}), warnings=s.get("warnings", []))
-        timed.pop(mid).release()
+        row.update(results.get(row["method"], {}))
     for row in rows:
         mid = row["method"]
         if "pass_ms" not in row:
@@ -109,15 +102,64 @@ def main(argv=None) -> int:
               f"err(ref) {row['ref_rmse_255']:.3f}/{row['ref_max_255']:.1f}"), flush=True)
     post = [sum(v for k, v in r["pass_ms"].items() if k in ("tone_mapping", "fxaa")) for r in rows if "pass_ms" in r]
     meta = {"device": caps.renderer, "size": args.size, "frames": args.frames, "warmup": args.warmup,
-            "ref_size": rs, "insertion_path": caps.insertion_path, "timing": "interleaved",
+            "ref_size": rs, "insertion_path": caps.insertion_path, "timing": args.timing, "burst": args.burst,
             # identical post passes in every row: their spread shows how steady the clock was
-            "post_ms_min": min(post, default=0.0), "post_ms_max": max(post, default=0.0)}
+            "post_ms_min": min(post, default=0.0), "post_ms_max": max(post, default=0.0),
+            **(clock.summary() or {})}
     (args.out / "methods.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=2))
     md = table(rows, meta)
     (args.out / "methods.md").write_text(md)
     print(md)
     chart(rows, meta, args.out / "methods.png")
     return 0
+
+
+def _row_from_stats(s: dict, pass_ms: dict, total_ms: float) -> dict:
+    """The timing columns of a row from a frame's stats and the measured per-pass medians."""
+    return dict(pass_ms=pass_ms, total_ms=total_ms, timer=s.get("timer", "?"),
+                geometry_passes=s.get("geometry_passes", 1), fragments=s.get("fragments", {}),
+                memory=s.get("memory", {}), warnings=s.get("warnings", []))
+
+
+def time_interleaved(mids: list[str], ctx, scene, args) -> dict[str, dict]:
+    """All methods in this process, one frame of each per round: clock changes hit all alike."""
+    out, timed = {}, {}
+    for mid in mids:
+        try:
+            timed[mid] = Renderer("default", ctx=ctx, method=mid)
+        except GuacaError as exc:
+            out[mid] = {"failed": str(exc)}
+    try:
+        ms = measure_interleaved(timed, scene, args.size, args.size, args.warmup, args.frames, args.burst)
+    except GuacaError as exc:
+        raise SystemExit(f"timing failed: {exc}")
+    for mid, m in ms.items():
+        out[mid] = _row_from_stats(m.last.stats, m.pass_ms, m.total_ms)
+        timed[mid].release()
+    return out
+
+
+def time_isolated(mids: list[str], ctx, scene, args) -> dict[str, dict]:
+    """Each method in a fresh `guaca render --warmup W --frames F` process (the demo scene), with its SM clock."""
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for mid in mids:
+            stats_path = Path(tmp) / f"{mid}.json"
+            cmd = [sys.executable, "-m", "guaca_py", "render", "--method", mid, "--width", str(args.size),
+                   "--height", str(args.size), "--warmup", str(args.warmup), "--frames", str(args.frames),
+                   "--out", str(Path(tmp) / f"{mid}.png"), "--stats", str(stats_path)]
+            with ClockSampler() as clock:
+                proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+            if proc.returncode != 0:
+                out[mid] = {"failed": " ".join((proc.stderr or proc.stdout).strip().splitlines()[-1:])}
+                continue
+            s = json.loads(stats_path.read_text())
+            pass_ms = {k: v["ms"] for k, v in s["passes"].items()}
+            out[mid] = _row_from_stats(s, pass_ms, sum(pass_ms.values()))
+            if clock.summary():
+                out[mid]["sm_clock_mhz_median"] = clock.summary()["sm_clock_mhz_median"]
+            print(f"{mid:<26} timed: {out[mid]['total_ms']:.3f} ms", flush=True)
+    return out
 
 
 def _mem_alloc_used(mem: dict) -> tuple[int, int]:
@@ -133,25 +175,33 @@ def _mem_alloc_used(mem: dict) -> tuple[int, int]:
 
 def table(rows, meta) -> str:
     """Markdown table of the measured rows."""
+    how = {"isolated": "each method in its own `guaca render` process",
+           "interleaved": "methods interleaved frame by frame"}.get(meta.get("timing", "interleaved"))
+    clocks = any("sm_clock_mhz_median" in r for r in rows)
     out = [f"Device: {meta['device']} · {meta['size']}×{meta['size']} demo scene · median of {meta['frames']} "
-           f"frames after {meta['warmup']} warm-up, methods interleaved · post passes (identical in every row) "
-           f"{meta['post_ms_min']:.3f}–{meta['post_ms_max']:.3f} ms · errors in 1/255 (RMSE / max)", "",
+           f"frames after {meta['warmup']} warm-up, {how} · post passes (identical in every row) "
+           f"{meta['post_ms_min']:.3f}–{meta['post_ms_max']:.3f} ms"
+           + (f" · SM clock while timing {meta['sm_clock_mhz_median']:.0f} MHz median "
+              f"({meta['sm_clock_mhz_min']}–{meta['sm_clock_mhz_max']})" if "sm_clock_mhz_median" in meta else "")
+           + " · errors in 1/255 (RMSE / max)", "",
            "Geometry ms is the G-buffer pass plus any pass that stores fragments; peeling and blending methods "
            "draw their transparent geometry inside the composite pass, so compare totals.", "",
            "| method | kind | geometry ms | lights ms | composite ms | post ms | total ms | geo passes | "
-           "memory MiB alloc / used | err demo vs exact | err unlit vs CPU ref |",
-           "|---|---|---|---|---|---|---|---|---|---|---|"]
+           "memory MiB alloc / used | err demo vs exact | err unlit vs CPU ref |" + (" SM MHz |" if clocks else ""),
+           "|---|---|---|---|---|---|---|---|---|---|---|" + ("---|" if clocks else "")]
     for r in rows:
         if "pass_ms" not in r:
             out.append(f"| {r['method']} | {'exact' if r['exact'] else 'approx'} | "
-                       + " | ".join(["—"] * 8) + f" | {r.get('skipped') or r.get('failed')} |")
+                       + " | ".join(["—"] * 8) + f" | {r.get('skipped') or r.get('failed')} |" + (" |" if clocks else ""))
             continue
         p = r["pass_ms"]
         post = sum(v for k, v in p.items() if k not in ("geometry", "light_culling", "composite"))
+        alloc, used = _mem_alloc_used(r["memory"])
         out.append(f"| {r['method']} | {'exact' if r['exact'] else 'approx'} | {p.get('geometry', 0):.3f} | "
                    f"{p.get('light_culling', 0):.3f} | {p.get('composite', 0):.3f} | {post:.3f} | {r['total_ms']:.3f} | "
-                   f"{r['geometry_passes']} | {_mem_alloc_used(r['memory'])[0] / 2**20:.1f} / {_mem_alloc_used(r['memory'])[1] / 2**20:.1f} | "
-                   f"{r['demo_rmse_255']:.2f} / {r['demo_max_255']:.0f} | {r['ref_rmse_255']:.2f} / {r['ref_max_255']:.0f} |")
+                   f"{r['geometry_passes']} | {alloc / 2**20:.1f} / {used / 2**20:.1f} | "
+                   f"{r['demo_rmse_255']:.2f} / {r['demo_max_255']:.0f} | {r['ref_rmse_255']:.2f} / {r['ref_max_255']:.0f} |"
+                   + (f" {r.get('sm_clock_mhz_median', '—')} |" if clocks else ""))
     return "\n".join(out) + "\n"
 
 
