@@ -201,7 +201,7 @@ def table(rows, meta) -> str:
                    f"{p.get('light_culling', 0):.3f} | {p.get('composite', 0):.3f} | {post:.3f} | {r['total_ms']:.3f} | "
                    f"{r['geometry_passes']} | {alloc / 2**20:.1f} / {used / 2**20:.1f} | "
                    f"{r['demo_rmse_255']:.2f} / {r['demo_max_255']:.0f} | {r['ref_rmse_255']:.2f} / {r['ref_max_255']:.0f} |"
-                   + (f" {r.get('sm_clock_mhz_median', '—')} |" if clocks else ""))
+                   + (f" {r['sm_clock_mhz_median']:.0f} |" if 'sm_clock_mhz_median' in r else " — |" if clocks else ""))
     return "\n".join(out) + "\n"
 
 
