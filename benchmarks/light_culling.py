@@ -8,21 +8,26 @@ Each count is rendered through the same pipeline (geometry, light_culling, compo
 tone_mapping) with culling 'auto' and 'off'; times are medians of --frames frames after
 --warmup untimed ones, GPU timer queries where the device has them (wall time otherwise).
 Writes OUTDIR/light_culling.json and OUTDIR/light_culling.png; prints a table and the
-off/on composite-time ratio at 1024 lights.
+off/on composite-time ratio at 1024 lights. With --per-process every light count is measured
+in a fresh process (the GPU driver lowers the clock over a long light-load run: see
+benchmarks/gpu_clock.py); the SM clock is recorded per point where nvidia-smi exists.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks" / "scenes")]
+sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks" / "scenes"), str(ROOT / "benchmarks")]
 
+from gpu_clock import ClockSampler  # noqa: E402
 from guaca_py import Renderer, pipeline_from_text  # noqa: E402
 from guaca_py.benchmarking import measure  # noqa: E402
 from guaca_py.context import create_context  # noqa: E402
@@ -42,6 +47,29 @@ passes:
 """
 
 
+def run_per_process(out: Path, size: int, counts: list[int], frames: int, warmup: int, tile: int) -> dict:
+    """run() with each light count in its own process; merged into one result in `out`."""
+    rows, result = [], None
+    t_start = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in counts:
+            sub = Path(tmp) / str(n)
+            cmd = [sys.executable, __file__, str(sub), "--size", str(size), "--lights", str(n), "--frames",
+                   str(frames), "--warmup", str(warmup), "--tile", str(tile)]
+            subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+            result = json.loads((sub / "light_culling.json").read_text())
+            rows += result["results"]
+            r = rows[-1]
+            print(f"{n:>6} lights  on {r['on']['composite_ms']:9.3f} ms  off {r['off']['composite_ms']:9.3f} ms  "
+                  f"off/on {r['ratio_off_on']:7.2f}", flush=True)
+    result.update(results=rows, per_process=True, elapsed_s=round(time.perf_counter() - t_start, 1),
+                  ratio_off_on_at_1024=next((r["ratio_off_on"] for r in rows if r["lights"] == 1024), None))
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "light_culling.json").write_text(json.dumps(result, indent=2))
+    _chart(result, out / "light_culling.png")
+    return result
+
+
 def run(out: Path, size: int, counts: list[int], frames: int, warmup: int, tile: int) -> dict:
     """Measure every (count, mode); write JSON and chart into `out`; return the results."""
     ctx, caps = create_context()
@@ -57,11 +85,16 @@ def run(out: Path, size: int, counts: list[int], frames: int, warmup: int, tile:
         scene.lights = all_lights[:n]
         row = {"lights": n}
         for mode, r in renderers.items():
-            m = measure(r, scene, size, size, warmup, frames)
+            with ClockSampler() as clock:
+                m = measure(r, scene, size, size, warmup, frames)
             s = m.last.stats
             entry = {"composite_ms": round(m.pass_ms["composite"], 4),
                      "light_culling_ms": round(m.pass_ms["light_culling"], 4),
+                     # the same work at every count: a yardstick of the clock the point ran at
+                     "tone_mapping_ms": round(m.pass_ms["tone_mapping"], 4),
                      "visible": s["lights"]["visible"], "timer": m.timer}
+            if clock.summary():
+                entry["sm_clock_mhz"] = clock.summary()["sm_clock_mhz_median"]
             if mode == "auto":
                 counts_per_tile = r.pass_named("light_culling").grid_bits().sum(axis=0)
                 entry["tile_lights_mean"] = round(float(counts_per_tile.mean()), 3)
@@ -111,11 +144,14 @@ def _chart(result: dict, path: Path) -> None:
 
 def _table(result: dict) -> str:
     lines = [f"{'lights':>7} {'on ms':>10} {'off ms':>10} {'off/on':>8} {'tile mean':>10} {'tile max':>9} "
-             f"{'cull ms':>9}"]
+             f"{'cull ms':>9} {'tonemap on/off ms':>18} {'SM MHz on/off':>14}"]
     for r in result["results"]:
-        lines.append(f"{r['lights']:>7} {r['on']['composite_ms']:>10.3f} {r['off']['composite_ms']:>10.3f} "
-                     f"{r['ratio_off_on']:>8.2f} {r['on']['tile_lights_mean']:>10.2f} {r['on']['tile_lights_max']:>9} "
-                     f"{r['on']['light_culling_ms']:>9.3f}")
+        on, off = r["on"], r["off"]
+        lines.append(f"{r['lights']:>7} {on['composite_ms']:>10.3f} {off['composite_ms']:>10.3f} "
+                     f"{r['ratio_off_on']:>8.2f} {on['tile_lights_mean']:>10.2f} {on['tile_lights_max']:>9} "
+                     f"{on['light_culling_ms']:>9.3f} "
+                     f"{on.get('tone_mapping_ms', float('nan')):>8.3f} /{off.get('tone_mapping_ms', float('nan')):>8.3f} "
+                     f"{str(on.get('sm_clock_mhz', '-')):>6} /{str(off.get('sm_clock_mhz', '-')):>6}")
     return "\n".join(lines)
 
 
@@ -127,8 +163,9 @@ def main(argv=None) -> int:
     ap.add_argument("--frames", type=int, default=10)
     ap.add_argument("--warmup", type=int, default=3)
     ap.add_argument("--tile", type=int, default=16)
+    ap.add_argument("--per-process", action="store_true", help="measure each light count in a fresh process")
     a = ap.parse_args(argv)
-    result = run(a.out, a.size, sorted(set(a.lights)), a.frames, a.warmup, a.tile)
+    result = (run_per_process if a.per_process else run)(a.out, a.size, sorted(set(a.lights)), a.frames, a.warmup, a.tile)
     print(f"\n{result['device']}, {a.size}x{a.size}, culling {result['culling_mode']}, {result['timer']} timer, "
           f"median of {a.frames} after {a.warmup} warm-up; composite pass:")
     print(_table(result))
