@@ -35,13 +35,14 @@ from guaca_py.scene.loader import load_scene_text  # noqa: E402
 from many_lights import many_lights_doc  # noqa: E402
 
 DEFAULT_LIGHTS = [2 ** k for k in range(13)]  # 1 .. 4096
+TILE_BITS = "auto"
 
 PIPELINE = """\
 name: light_culling_benchmark
 transparency: {{method: presort_lf_et, threshold: 0.98, budget_mb: auto}}
 passes:
   - geometry: {{}}
-  - light_culling: {{mode: {mode}, tile_size: {tile}, max_lights: {max_lights}}}
+  - light_culling: {{mode: {mode}, tile_size: {tile}, max_lights: {max_lights}, tile_bits: {tile_bits}}}
   - composite: {{}}
   - tone_mapping: {{operator: aces}}
 """
@@ -55,7 +56,7 @@ def run_per_process(out: Path, size: int, counts: list[int], frames: int, warmup
         for n in counts:
             sub = Path(tmp) / str(n)
             cmd = [sys.executable, __file__, str(sub), "--size", str(size), "--lights", str(n), "--frames",
-                   str(frames), "--warmup", str(warmup), "--tile", str(tile)]
+                   str(frames), "--warmup", str(warmup), "--tile", str(tile), "--tile-bits", TILE_BITS]
             subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
             result = json.loads((sub / "light_culling.json").read_text())
             rows += result["results"]
@@ -76,7 +77,7 @@ def run(out: Path, size: int, counts: list[int], frames: int, warmup: int, tile:
     doc = many_lights_doc(max(counts), seed=0)
     scene = load_scene_text(yaml.safe_dump(doc), "many_lights")
     all_lights = list(scene.lights)
-    renderers = {mode: Renderer(pipeline_from_text(PIPELINE.format(mode=mode, tile=tile, max_lights=max(counts))),
+    renderers = {mode: Renderer(pipeline_from_text(PIPELINE.format(mode=mode, tile=tile, max_lights=max(counts), tile_bits=TILE_BITS)),
                                 ctx=ctx) for mode in ("auto", "off")}
     resolved = renderers["auto"].pass_named("light_culling").mode
     rows = []
@@ -164,7 +165,10 @@ def main(argv=None) -> int:
     ap.add_argument("--warmup", type=int, default=3)
     ap.add_argument("--tile", type=int, default=16)
     ap.add_argument("--per-process", action="store_true", help="measure each light count in a fresh process")
+    ap.add_argument("--tile-bits", default="auto", choices=("auto", "cache", "fetch"))
     a = ap.parse_args(argv)
+    global TILE_BITS
+    TILE_BITS = a.tile_bits
     result = (run_per_process if a.per_process else run)(a.out, a.size, sorted(set(a.lights)), a.frames, a.warmup, a.tile)
     print(f"\n{result['device']}, {a.size}x{a.size}, culling {result['culling_mode']}, {result['timer']} timer, "
           f"median of {a.frames} after {a.warmup} warm-up; composite pass:")

@@ -21,13 +21,13 @@ from conftest import quad_node, simple_scene, unit_quad
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def pipeline(mode: str, tile: int = 16, extra: str = "", max_lights: int = 1024):
+def pipeline(mode: str, tile: int = 16, extra: str = "", max_lights: int = 1024, tile_bits: str = "auto"):
     """A linear-output pipeline (no tone mapping) with the given culling mode."""
     return pipeline_from_text(f"""
 transparency: {{method: presort_lf_et, threshold: 0.999}}
 passes:
   - geometry: {{}}
-  - light_culling: {{mode: {mode}, tile_size: {tile}, max_lights: {max_lights}}}
+  - light_culling: {{mode: {mode}, tile_size: {tile}, max_lights: {max_lights}, tile_bits: {tile_bits}}}
   - composite: {{}}
 {extra}""")
 
@@ -178,14 +178,14 @@ def culling_off_image(renderer_factory):
     return renderer_factory(pipeline("off")).render(lit_scene(), 96, 96)
 
 
-@pytest.mark.parametrize("mode", ["fallback", "conservative"])
-def test_images_agree_with_culling_off(renderer_factory, gl_context, culling_off_image, mode):
+@pytest.mark.parametrize("mode,tile_bits", [("fallback", "cache"), ("fallback", "fetch"), ("conservative", "auto")])
+def test_images_agree_with_culling_off(renderer_factory, gl_context, culling_off_image, mode, tile_bits):
     from guaca_py.context import detect_capabilities
 
     if mode == "conservative" and not detect_capabilities(gl_context).conservative_raster:
         pytest.skip("device has no GL_NV_conservative_raster (llvmpipe)")
     off = culling_off_image
-    on = renderer_factory(pipeline(mode, tile=16)).render(lit_scene(), 96, 96)
+    on = renderer_factory(pipeline(mode, tile=16, tile_bits=tile_bits)).render(lit_scene(), 96, 96)
     assert on.stats["lights"]["visible"] >= 100 and on.stats["lights"]["mode"] == mode
     assert on.stats["fragments"]["stored"] > 0
     lin = np.abs(np.clip(on.linear, 0, 1) - np.clip(off.linear, 0, 1))
@@ -194,6 +194,19 @@ def test_images_agree_with_culling_off(renderer_factory, gl_context, culling_off
           f"mean {off.linear.mean():.3f}, clipped {(off.linear > 1).mean():.3f}")
     assert lin.max() <= 1.0 / 255 and img.max() <= 1
     assert 0.05 < off.linear.mean() < 0.9   # lit, not black or blown out
+
+
+def test_tile_bits_auto_follows_the_layer_count(renderer_factory):
+    from guaca_py.passes.light_culling import CACHE_TILE_BITS_ABOVE
+
+    lc = renderer_factory(pipeline("fallback")).pass_named("light_culling")
+    lc.layers_allocated = CACHE_TILE_BITS_ABOVE
+    assert lc.template_vars()["tile_bits_cached"] is False
+    lc.layers_allocated = CACHE_TILE_BITS_ABOVE + 1
+    assert lc.template_vars()["tile_bits_cached"] is True
+    forced = renderer_factory(pipeline("fallback", tile_bits="fetch")).pass_named("light_culling")
+    forced.layers_allocated = 4 * CACHE_TILE_BITS_ABOVE
+    assert forced.template_vars()["tile_bits_cached"] is False
 
 
 def test_grid_actually_culls(renderer_factory):
@@ -208,7 +221,8 @@ def test_layers_grow_only_when_needed(renderer_factory):
     lc = r.pass_named("light_culling")
     scene = lit_scene(n_lights=10)
     r.render(scene, 48, 48)
-    assert lc.layers_allocated == 1 and lc.template_vars() == {"light_grid": True, "max_light_layers": 1}
+    assert lc.layers_allocated == 1 and lc.template_vars() == {"light_grid": True, "max_light_layers": 1,
+                                                                 "tile_bits_cached": False}
     s = r.render(lit_scene(n_lights=70), 48, 48).stats["lights"]
     assert (s["layers"], s["layers_allocated"]) == (math.ceil(s["shaded"] / 32), 4)
     r.render(scene, 48, 48)
@@ -232,7 +246,7 @@ def test_mode_auto_is_default_and_resolves(renderer_factory, gl_context):
     assert load_pipeline("default").pass_settings("light_culling")["mode"] == "auto"
     assert load_pipeline("exact").pass_settings("light_culling")["mode"] == "off"
     assert pipeline_from_text("passes: [geometry, light_culling, composite]").pass_settings("light_culling") == \
-        {"mode": "auto", "tile_size": 16, "max_lights": 1024, "report_accuracy": False}
+        {"mode": "auto", "tile_size": 16, "max_lights": 1024, "tile_bits": "auto", "report_accuracy": False}
     lc = renderer_factory("default").pass_named("light_culling")
     has = detect_capabilities(gl_context).conservative_raster
     assert lc.mode == ("conservative" if has else "fallback")

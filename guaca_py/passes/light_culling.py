@@ -25,6 +25,9 @@ def _tile_size(v) -> str | None:
     return None if 1 <= v <= 256 else f"must be in 1..256 pixels, got {v}"
 
 
+CACHE_TILE_BITS_ABOVE = 64  # layers (2048 lights): 'auto' caches a tile's bits per pixel beyond this
+
+
 class LightCullingPass(Pass):
     """Assigns the visible lights to screen tiles (bit i of a tile set where light i may touch it).
 
@@ -41,6 +44,9 @@ class LightCullingPass(Pass):
         "mode": Setting((str,), "auto", "light grid construction", choices=MODES),
         "tile_size": Setting((int,), 16, "tile edge in pixels", check=_tile_size),
         "max_lights": Setting((int,), 1024, "most visible lights a frame may use", check=positive),
+        "tile_bits": Setting((str,), "auto", "how composite reads a tile's light bits: 'cache' (once per pixel "
+                             "into a local array), 'fetch' (per shaded fragment, from the texture cache) or "
+                             "'auto'", choices=("auto", "cache", "fetch")),
         "report_accuracy": Setting((bool,), False,
                                    "compare the grid with the exact CPU answer every frame (slow; stats)"),
     }
@@ -247,7 +253,13 @@ class LightCullingPass(Pass):
         """Shader variables describing how lights are looked up."""
         if self.mode == "off":
             return {"light_grid": False, "max_light_layers": 1}
-        return {"light_grid": True, "max_light_layers": self.layers_allocated}
+        how = self.settings["tile_bits"]
+        if how == "auto":
+            # Measured on the H100 (1024², benchmarks/results/h100/light_culling*): a per-pixel array of
+            # 32 layers cost 13.5 ms of composite against 7.3 ms fetching per fragment; past 64 layers
+            # the per-fragment fetches of empty layers dominate (4096 lights: 54.3 vs 32.7 ms).
+            how = "cache" if self.layers_allocated > CACHE_TILE_BITS_ABOVE else "fetch"
+        return {"light_grid": True, "max_light_layers": self.layers_allocated, "tile_bits_cached": how == "cache"}
 
     def _release_grid(self) -> None:
         for o in (self._grid, self._fbo, self._everywhere):
