@@ -18,7 +18,7 @@ python3 -m guaca_py render --width 1024 --height 1024 --out "$out/logs/demo_cold
 python3 -m guaca_py render --width 1024 --height 1024 --warmup 3 --frames 10 --out "$out/demo_1024.png" \
   --stats "$out/logs/demo_1024_warm.json" 2>&1 | tee "$out/logs/demo_warm.txt"
 if [[ $skip != *" lights "* && -f benchmarks/light_culling.py ]]; then
-  timeout 240 python3 benchmarks/light_culling.py "$out/lights" 2>&1 | tee "$out/logs/light_culling.txt"
+  timeout 240 python3 benchmarks/light_culling.py "$out/lights" --per-process 2>&1 | tee "$out/logs/light_culling.txt"
 fi
 if [[ $skip != *" methods "* ]]; then
   timeout 300 python3 benchmarks/methods_table.py "$out/methods" 2>&1 | tee "$out/logs/methods.txt"
