@@ -2,7 +2,8 @@
 
 GPU timer queries measure time, and the time of a pass scales with the clock the driver picks:
 on the H100 it ran the same frame at 1980 MHz and, after other work, at under 1000 MHz for
-seconds at a time. Recording the clock beside the timings says which regime a table was taken in.
+seconds at a time. Recording the clock beside the timings says which regime a table was taken in,
+and a point whose median clock was under 90% of the maximum is measured again (up to RETRIES).
 """
 from __future__ import annotations
 
@@ -10,6 +11,23 @@ import shutil
 import statistics
 import subprocess
 import threading
+from functools import lru_cache
+
+RETRIES = 2  # extra attempts a benchmark point gets when its clock was throttled
+
+
+@lru_cache(maxsize=1)
+def max_sm_clock() -> int | None:
+    """The GPU's maximum SM clock in MHz (nvidia-smi clocks.max.sm), or None."""
+    exe = shutil.which("nvidia-smi")
+    if not exe:
+        return None
+    try:
+        out = subprocess.run([exe, "--query-gpu=clocks.max.sm", "--format=csv,noheader,nounits"],
+                             capture_output=True, text=True, timeout=10).stdout
+        return int(out.split()[0])
+    except (ValueError, IndexError, subprocess.SubprocessError):
+        return None
 
 
 class ClockSampler:
@@ -43,6 +61,11 @@ class ClockSampler:
             self._proc.terminate()
             self._proc.wait(timeout=5)
             self._thread.join(timeout=5)
+
+    def throttled(self) -> bool:
+        """True when the median sampled clock was under 90% of the device's maximum."""
+        top = max_sm_clock()
+        return bool(self.samples and top and statistics.median(self.samples) < 0.9 * top)
 
     def summary(self) -> dict | None:
         """Median, min and max SM clock in MHz over the samples, or None without nvidia-smi."""

@@ -23,7 +23,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests"), str(ROOT / "benchmarks")]
 
-from gpu_clock import ClockSampler  # noqa: E402
+from gpu_clock import RETRIES, ClockSampler  # noqa: E402
 from guaca_py import GuacaError, Renderer  # noqa: E402
 from guaca_py.benchmarking import measure_interleaved  # noqa: E402
 from guaca_py.context import create_context  # noqa: E402
@@ -148,8 +148,11 @@ def time_isolated(mids: list[str], ctx, scene, args) -> dict[str, dict]:
             cmd = [sys.executable, "-m", "guaca_py", "render", "--method", mid, "--width", str(args.size),
                    "--height", str(args.size), "--warmup", str(args.warmup), "--frames", str(args.frames),
                    "--out", str(Path(tmp) / f"{mid}.png"), "--stats", str(stats_path)]
-            with ClockSampler() as clock:
-                proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+            for attempt in range(RETRIES + 1):   # a throttled clock is measured again
+                with ClockSampler() as clock:
+                    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+                if proc.returncode != 0 or not clock.throttled():
+                    break
             if proc.returncode != 0:
                 out[mid] = {"failed": " ".join((proc.stderr or proc.stdout).strip().splitlines()[-1:])}
                 continue
@@ -158,6 +161,7 @@ def time_isolated(mids: list[str], ctx, scene, args) -> dict[str, dict]:
             out[mid] = _row_from_stats(s, pass_ms, sum(pass_ms.values()))
             if clock.summary():
                 out[mid]["sm_clock_mhz_median"] = clock.summary()["sm_clock_mhz_median"]
+                out[mid]["clock_retries"] = attempt
             print(f"{mid:<26} timed: {out[mid]['total_ms']:.3f} ms", flush=True)
     return out
 
