@@ -134,6 +134,13 @@ def _chart(result: dict, path: Path) -> None:
     fig, ax = plt.subplots(figsize=(7, 4.5), dpi=110)
     ax.plot(n, [r["on"]["composite_ms"] for r in rows], "o-", label=f"culling on ({result['culling_mode']})")
     ax.plot(n, [r["off"]["composite_ms"] for r in rows], "s--", label="culling off (every light everywhere)")
+    clocks = [e["sm_clock_mhz"] for r in rows for e in (r["on"], r["off"]) if "sm_clock_mhz" in e]
+    for r in rows:   # points the GPU ran at a throttled clock (even after retries) say so
+        for key in ("on", "off"):
+            mhz = r[key].get("sm_clock_mhz")
+            if mhz and mhz < 0.9 * max(clocks):
+                ax.annotate(f"{mhz:.0f} MHz", (r["lights"], r[key]["composite_ms"]), fontsize=7, color="tab:red",
+                            xytext=(-40, 6), textcoords="offset points")
     ax.set_xscale("log", base=2)
     ax.set_yscale("log")
     ax.set_xlabel("lights in the scene")
