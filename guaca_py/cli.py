@@ -24,7 +24,8 @@ def _cmd_render(args) -> int:
         if "=" not in item:
             raise GuacaError(f"--set expects key=value, got {item!r}")
         k, v = item.split("=", 1)
-        overrides[k] = _parse_value(v)
+        # the settings live under the pipeline's `transparency:` key; accept that spelling too
+        overrides[k.strip().removeprefix("transparency.")] = _parse_value(v)
     renderer = Renderer(args.pipeline, method=args.method, method_overrides=overrides,
                         material_paths=args.materials)
     if args.frames > 1 or args.warmup:

@@ -52,9 +52,10 @@ def test_render_writes_png_and_stats(scene_file, tmp_path, capsys):
 
 
 def test_tiny_budget_overflow_is_reported(scene_file, tmp_path, capsys):
+    # the key may be written as in the pipeline file (transparency.budget_mb) or bare (budget_mb)
     stats = tmp_path / "s.json"
     code = main(["render", str(scene_file), "--pipeline", "exact", "--width", "64", "--height", "64",
-                 "--set", "budget_mb=0.001", "--out", str(tmp_path / "o.png"), "--stats", str(stats)])
+                 "--set", "transparency.budget_mb=0.001", "--out", str(tmp_path / "o.png"), "--stats", str(stats)])
     assert code == 0
     err = capsys.readouterr().err
     assert "overflow" in err.lower()
