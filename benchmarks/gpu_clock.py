@@ -12,6 +12,9 @@ import statistics
 import subprocess
 import threading
 from functools import lru_cache
+from typing import Callable, TypeVar
+
+T = TypeVar("T")
 
 RETRIES = 2  # extra attempts a benchmark point gets when its clock was throttled
 
@@ -69,7 +72,26 @@ class ClockSampler:
 
     def summary(self) -> dict | None:
         """Median, min and max SM clock in MHz over the samples, or None without nvidia-smi."""
-        if not self.samples:
-            return None
-        return {"sm_clock_mhz_median": statistics.median(self.samples), "sm_clock_mhz_min": min(self.samples),
-                "sm_clock_mhz_max": max(self.samples), "sm_clock_samples": len(self.samples)}
+        return clock_summary(self.samples)
+
+
+def clock_summary(samples: list[int]) -> dict | None:
+    """Median, min and max of SM clock samples in MHz, or None when there are none."""
+    if not samples:
+        return None
+    return {"sm_clock_mhz_median": statistics.median(samples), "sm_clock_mhz_min": min(samples),
+            "sm_clock_mhz_max": max(samples), "sm_clock_samples": len(samples)}
+
+
+def at_full_clock(measure: Callable[[], T], valid: Callable[[T], bool] = lambda _: True) -> tuple[T, ClockSampler, int]:
+    """Run `measure` under a ClockSampler, again (up to RETRIES) while the clock was throttled.
+
+    Returns the last result, its sampler and the number of retries; an invalid result (a failed
+    run) is not retried.
+    """
+    for attempt in range(RETRIES + 1):
+        with ClockSampler() as clock:
+            result = measure()
+        if not valid(result) or not clock.throttled():
+            break
+    return result, clock, attempt

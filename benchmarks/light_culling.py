@@ -27,7 +27,7 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks" / "scenes"), str(ROOT / "benchmarks")]
 
-from gpu_clock import RETRIES, ClockSampler  # noqa: E402
+from gpu_clock import at_full_clock  # noqa: E402
 from guaca_py import Renderer, pipeline_from_text  # noqa: E402
 from guaca_py.benchmarking import measure  # noqa: E402
 from guaca_py.context import create_context  # noqa: E402
@@ -35,7 +35,6 @@ from guaca_py.scene.loader import load_scene_text  # noqa: E402
 from many_lights import many_lights_doc  # noqa: E402
 
 DEFAULT_LIGHTS = [2 ** k for k in range(13)]  # 1 .. 4096
-TILE_BITS = "auto"
 
 PIPELINE = """\
 name: light_culling_benchmark
@@ -48,7 +47,8 @@ passes:
 """
 
 
-def run_per_process(out: Path, size: int, counts: list[int], frames: int, warmup: int, tile: int) -> dict:
+def run_per_process(out: Path, size: int, counts: list[int], frames: int, warmup: int, tile: int,
+                    tile_bits: str = "auto") -> dict:
     """run() with each light count in its own process; merged into one result in `out`."""
     rows, result = [], None
     t_start = time.perf_counter()
@@ -56,13 +56,11 @@ def run_per_process(out: Path, size: int, counts: list[int], frames: int, warmup
         for n in counts:
             sub = Path(tmp) / str(n)
             cmd = [sys.executable, __file__, str(sub), "--size", str(size), "--lights", str(n), "--frames",
-                   str(frames), "--warmup", str(warmup), "--tile", str(tile), "--tile-bits", TILE_BITS]
+                   str(frames), "--warmup", str(warmup), "--tile", str(tile), "--tile-bits", tile_bits]
             subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
             result = json.loads((sub / "light_culling.json").read_text())
             rows += result["results"]
-            r = rows[-1]
-            print(f"{n:>6} lights  on {r['on']['composite_ms']:9.3f} ms  off {r['off']['composite_ms']:9.3f} ms  "
-                  f"off/on {r['ratio_off_on']:7.2f}", flush=True)
+            print(_row_line(rows[-1]), flush=True)
     result.update(results=rows, per_process=True, elapsed_s=round(time.perf_counter() - t_start, 1),
                   ratio_off_on_at_1024=next((r["ratio_off_on"] for r in rows if r["lights"] == 1024), None))
     out.mkdir(parents=True, exist_ok=True)
@@ -71,13 +69,14 @@ def run_per_process(out: Path, size: int, counts: list[int], frames: int, warmup
     return result
 
 
-def run(out: Path, size: int, counts: list[int], frames: int, warmup: int, tile: int) -> dict:
+def run(out: Path, size: int, counts: list[int], frames: int, warmup: int, tile: int,
+        tile_bits: str = "auto") -> dict:
     """Measure every (count, mode); write JSON and chart into `out`; return the results."""
     ctx, caps = create_context()
     doc = many_lights_doc(max(counts), seed=0)
     scene = load_scene_text(yaml.safe_dump(doc), "many_lights")
     all_lights = list(scene.lights)
-    renderers = {mode: Renderer(pipeline_from_text(PIPELINE.format(mode=mode, tile=tile, max_lights=max(counts), tile_bits=TILE_BITS)),
+    renderers = {mode: Renderer(pipeline_from_text(PIPELINE.format(mode=mode, tile=tile, max_lights=max(counts), tile_bits=tile_bits)),
                                 ctx=ctx) for mode in ("auto", "off")}
     resolved = renderers["auto"].pass_named("light_culling").mode
     rows = []
@@ -86,11 +85,7 @@ def run(out: Path, size: int, counts: list[int], frames: int, warmup: int, tile:
         scene.lights = all_lights[:n]
         row = {"lights": n}
         for mode, r in renderers.items():
-            for attempt in range(RETRIES + 1):   # a throttled clock is measured again
-                with ClockSampler() as clock:
-                    m = measure(r, scene, size, size, warmup, frames)
-                if not clock.throttled():
-                    break
+            m, clock, retries = at_full_clock(lambda: measure(r, scene, size, size, warmup, frames))
             s = m.last.stats
             entry = {"composite_ms": round(m.pass_ms["composite"], 4),
                      "light_culling_ms": round(m.pass_ms["light_culling"], 4),
@@ -99,7 +94,7 @@ def run(out: Path, size: int, counts: list[int], frames: int, warmup: int, tile:
                      "visible": s["lights"]["visible"], "timer": m.timer}
             if clock.summary():
                 entry["sm_clock_mhz"] = clock.summary()["sm_clock_mhz_median"]
-                entry["clock_retries"] = attempt
+                entry["clock_retries"] = retries
             if mode == "auto":
                 counts_per_tile = r.pass_named("light_culling").grid_bits().sum(axis=0)
                 entry["tile_lights_mean"] = round(float(counts_per_tile.mean()), 3)
@@ -107,8 +102,7 @@ def run(out: Path, size: int, counts: list[int], frames: int, warmup: int, tile:
             row["on" if mode == "auto" else "off"] = entry
         row["ratio_off_on"] = round(row["off"]["composite_ms"] / max(row["on"]["composite_ms"], 1e-9), 3)
         rows.append(row)
-        print(f"{n:>6} lights  on {row['on']['composite_ms']:9.3f} ms  off {row['off']['composite_ms']:9.3f} ms  "
-              f"off/on {row['ratio_off_on']:7.2f}  tile mean {row['on']['tile_lights_mean']:8.2f}", flush=True)
+        print(_row_line(row), flush=True)
     for r in renderers.values():
         r.release()
     at_1024 = next((r["ratio_off_on"] for r in rows if r["lights"] == 1024), None)
@@ -121,6 +115,12 @@ def run(out: Path, size: int, counts: list[int], frames: int, warmup: int, tile:
     (out / "light_culling.json").write_text(json.dumps(result, indent=2))
     _chart(result, out / "light_culling.png")
     return result
+
+
+def _row_line(row: dict) -> str:
+    """One progress line per light count."""
+    return (f"{row['lights']:>6} lights  on {row['on']['composite_ms']:9.3f} ms  off {row['off']['composite_ms']:9.3f} ms  "
+            f"off/on {row['ratio_off_on']:7.2f}  tile mean {row['on']['tile_lights_mean']:8.2f}")
 
 
 def _chart(result: dict, path: Path) -> None:
@@ -178,9 +178,8 @@ def main(argv=None) -> int:
     ap.add_argument("--per-process", action="store_true", help="measure each light count in a fresh process")
     ap.add_argument("--tile-bits", default="auto", choices=("auto", "cache", "fetch"))
     a = ap.parse_args(argv)
-    global TILE_BITS
-    TILE_BITS = a.tile_bits
-    result = (run_per_process if a.per_process else run)(a.out, a.size, sorted(set(a.lights)), a.frames, a.warmup, a.tile)
+    result = (run_per_process if a.per_process else run)(a.out, a.size, sorted(set(a.lights)), a.frames, a.warmup,
+                                                          a.tile, a.tile_bits)
     print(f"\n{result['device']}, {a.size}x{a.size}, culling {result['culling_mode']}, {result['timer']} timer, "
           f"median of {a.frames} after {a.warmup} warm-up; composite pass:")
     print(_table(result))

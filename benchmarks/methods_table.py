@@ -23,13 +23,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests"), str(ROOT / "benchmarks")]
 
-from gpu_clock import RETRIES, ClockSampler  # noqa: E402
+from gpu_clock import ClockSampler, at_full_clock, clock_summary  # noqa: E402
 from guaca_py import GuacaError, Renderer  # noqa: E402
 from guaca_py.benchmarking import measure_interleaved  # noqa: E402
 from guaca_py.context import create_context  # noqa: E402
 from guaca_py.methods import method_class, method_ids  # noqa: E402
 from guaca_py.scene.loader import demo_scene  # noqa: E402
-from reference import compare, edge_mask, layered_quads_scene, render_reference, scene_triangles  # noqa: E402
+from reference import compare, layered_quads_scene, reference_of  # noqa: E402
 
 
 def linear_error(img: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
@@ -45,7 +45,6 @@ def main(argv=None) -> int:
     ap.add_argument("--frames", type=int, default=10)
     ap.add_argument("--warmup", type=int, default=5)
     ap.add_argument("--ref-size", type=int, default=192)
-    ap.add_argument("--burst", type=int, default=1, help="interleaved: frames of one method per round, the last timed")
     ap.add_argument("--timing", choices=("isolated", "interleaved"), default="isolated",
                     help="isolated: each method in its own `guaca render` process, as a user runs it; "
                          "interleaved: one process, one frame of each method per round")
@@ -59,10 +58,8 @@ def main(argv=None) -> int:
     ctx, caps = create_context()
     demo = demo_scene()
     layered = layered_quads_scene(n_layers=16, order="shuffled", seed=11)
-    tris, rgb, alpha = scene_triangles(layered)
     rs = args.ref_size
-    ref_img, _ = render_reference(tris, rgb, alpha, layered.camera, rs, rs, layered.background)
-    ref_mask = edge_mask(tris, layered.camera, rs, rs)
+    ref_img, ref_mask, _ = reference_of(layered, rs, rs)
     exact_r = Renderer("exact", ctx=ctx, method="presort_lf")
     exact_demo = exact_r.render(demo, args.size, args.size).linear
     exact_r.release()
@@ -79,8 +76,7 @@ def main(argv=None) -> int:
             runnable.append(mid)
     # Timing first, before the CPU-heavy error phase.
     timing = time_isolated if args.timing == "isolated" else time_interleaved
-    with ClockSampler() as clock:
-        results = timing(runnable, ctx, demo, args)
+    results, clock_samples = timing(runnable, ctx, demo, args)
     for row in rows:
         row.update(results.get(row["method"], {}))
     for row in rows:
@@ -102,10 +98,10 @@ def main(argv=None) -> int:
               f"err(ref) {row['ref_rmse_255']:.3f}/{row['ref_max_255']:.1f}"), flush=True)
     post = [sum(v for k, v in r["pass_ms"].items() if k in ("tone_mapping", "fxaa")) for r in rows if "pass_ms" in r]
     meta = {"device": caps.renderer, "size": args.size, "frames": args.frames, "warmup": args.warmup,
-            "ref_size": rs, "insertion_path": caps.insertion_path, "timing": args.timing, "burst": args.burst,
+            "ref_size": rs, "insertion_path": caps.insertion_path, "timing": args.timing,
             # identical post passes in every row: their spread shows how steady the clock was
             "post_ms_min": min(post, default=0.0), "post_ms_max": max(post, default=0.0),
-            **(clock.summary() or {})}
+            **(clock_summary(clock_samples) or {})}
     (args.out / "methods.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=2))
     md = table(rows, meta)
     (args.out / "methods.md").write_text(md)
@@ -121,7 +117,7 @@ def _row_from_stats(s: dict, pass_ms: dict, total_ms: float) -> dict:
                 memory=s.get("memory", {}), warnings=s.get("warnings", []))
 
 
-def time_interleaved(mids: list[str], ctx, scene, args) -> dict[str, dict]:
+def time_interleaved(mids: list[str], ctx, scene, args) -> tuple[dict[str, dict], list[int]]:
     """All methods in this process, one frame of each per round: clock changes hit all alike."""
     out, timed = {}, {}
     for mid in mids:
@@ -130,40 +126,39 @@ def time_interleaved(mids: list[str], ctx, scene, args) -> dict[str, dict]:
         except GuacaError as exc:
             out[mid] = {"failed": str(exc)}
     try:
-        ms = measure_interleaved(timed, scene, args.size, args.size, args.warmup, args.frames, args.burst)
+        with ClockSampler() as clock:
+            ms = measure_interleaved(timed, scene, args.size, args.size, args.warmup, args.frames)
     except GuacaError as exc:
         raise SystemExit(f"timing failed: {exc}")
     for mid, m in ms.items():
         out[mid] = _row_from_stats(m.last.stats, m.pass_ms, m.total_ms)
         timed[mid].release()
-    return out
+    return out, clock.samples
 
 
-def time_isolated(mids: list[str], ctx, scene, args) -> dict[str, dict]:
+def time_isolated(mids: list[str], ctx, scene, args) -> tuple[dict[str, dict], list[int]]:
     """Each method in a fresh `guaca render --warmup W --frames F` process (the demo scene), with its SM clock."""
-    out = {}
+    out, samples = {}, []
     with tempfile.TemporaryDirectory() as tmp:
         for mid in mids:
             stats_path = Path(tmp) / f"{mid}.json"
             cmd = [sys.executable, "-m", "guaca_py", "render", "--method", mid, "--width", str(args.size),
                    "--height", str(args.size), "--warmup", str(args.warmup), "--frames", str(args.frames),
                    "--out", str(Path(tmp) / f"{mid}.png"), "--stats", str(stats_path)]
-            for attempt in range(RETRIES + 1):   # a throttled clock is measured again
-                with ClockSampler() as clock:
-                    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
-                if proc.returncode != 0 or not clock.throttled():
-                    break
+            proc, clock, retries = at_full_clock(lambda: subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT),
+                                                 valid=lambda p: p.returncode == 0)
             if proc.returncode != 0:
                 out[mid] = {"failed": " ".join((proc.stderr or proc.stdout).strip().splitlines()[-1:])}
                 continue
             s = json.loads(stats_path.read_text())
             pass_ms = {k: v["ms"] for k, v in s["passes"].items()}
             out[mid] = _row_from_stats(s, pass_ms, sum(pass_ms.values()))
+            samples += clock.samples
             if clock.summary():
                 out[mid]["sm_clock_mhz_median"] = clock.summary()["sm_clock_mhz_median"]
-                out[mid]["clock_retries"] = attempt
+                out[mid]["clock_retries"] = retries
             print(f"{mid:<26} timed: {out[mid]['total_ms']:.3f} ms", flush=True)
-    return out
+    return out, samples
 
 
 def _mem_alloc_used(mem: dict) -> tuple[int, int]:

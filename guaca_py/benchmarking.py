@@ -24,8 +24,8 @@ def measure(renderer, scene, width: int, height: int, warmup: int = 3, frames: i
 
 
 def measure_interleaved(renderers: dict, scene, width: int, height: int, warmup: int = 5,
-                        frames: int = 10, burst: int = 1) -> dict[str, Measurement]:
-    """Like measure() for several renderers at once: per round, `burst` frames of each, the last one timed."""
+                        frames: int = 10) -> dict[str, Measurement]:
+    """Like measure() for several renderers at once, one frame of each per round."""
     for _ in range(warmup):
         for r in renderers.values():
             r.render(scene, width, height)
@@ -34,8 +34,6 @@ def measure_interleaved(renderers: dict, scene, width: int, height: int, warmup:
     last: dict[str, FrameResult] = {}
     for _ in range(max(1, frames)):
         for key, r in renderers.items():
-            for _ in range(burst - 1):   # back to back first, so the timed frame is not the first after a switch
-                r.render(scene, width, height)
             res = last[key] = r.render(scene, width, height)
             for name, p in res.stats["passes"].items():
                 samples[key].setdefault(name, []).append(p["ms"])
