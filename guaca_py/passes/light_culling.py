@@ -9,7 +9,7 @@ from ..errors import DeviceError
 from ..pipeline.settings import Setting, positive
 from .base import Pass
 from .light_grid_cpu import compare_grids, exact_tile_lights, grid_shape, unpack_grid
-from .lights import pack_lights, visible_lights
+from .lights import LIGHT_TYPE_CODE, light_table, pack_lights, visible_mask
 
 MODES = ("auto", "conservative", "fallback", "off")
 ARC_SEGMENTS = 8        # proxy profile: segments of the range sphere's arc
@@ -84,24 +84,21 @@ class LightCullingPass(Pass):
         return "conservative", f"GL_NV_conservative_raster via {gl.source}"
 
     # ------------------------------------------------------------------ CPU side
-    def _order(self, lights, view: np.ndarray, near: float, far: float) -> tuple[list, int]:
-        """Lights in bit order: rasterized proxies first, then those reaching every tile; and the split.
+    def _order(self, table: np.ndarray, idx: np.ndarray, view: np.ndarray, near: float,
+               far: float) -> tuple[np.ndarray, int]:
+        """Light rows `idx` in bit order: rasterized proxies first, then those reaching every tile; and the split.
 
         Proxies are clipped by the near and far planes, which removes their caps. A ray from the eye
         that meets the clipped volume still crosses a drawn face (where it enters or leaves),
         unless the volume spans both planes along it: only such lights (and directional ones)
         are given every tile.
         """
-        raster, everywhere = [], []
-        for l in lights:
-            if l.type == "directional":
-                everywhere.append(l)
-                continue
-            depth = -(view[2, :3] @ np.asarray(l.position, dtype=np.float64) + view[2, 3])
-            reach = l.radius * PROXY_EXTENT * (1.0 + _PLANE_MARGIN)
-            spans = depth - reach <= near * (1.0 + _PLANE_MARGIN) and depth + reach >= far * (1.0 - _PLANE_MARGIN)
-            (everywhere if spans else raster).append(l)
-        return raster + everywhere, len(raster)
+        rows = table[idx]
+        depth = -(rows[:, 0:3] @ view[2, :3] + view[2, 3])
+        reach = rows[:, 3] * PROXY_EXTENT * (1.0 + _PLANE_MARGIN)
+        spans = (depth - reach <= near * (1.0 + _PLANE_MARGIN)) & (depth + reach >= far * (1.0 - _PLANE_MARGIN))
+        everywhere = spans | (rows[:, 7] == LIGHT_TYPE_CODE["directional"])
+        return np.concatenate([idx[~everywhere], idx[everywhere]]), int(np.count_nonzero(~everywhere))
 
     def _upload(self, data: bytes) -> None:
         if self._buffer is None or self._buffer.size < len(data):
@@ -188,17 +185,18 @@ class LightCullingPass(Pass):
     # ------------------------------------------------------------------ pass
     def execute(self, frame) -> None:
         """Cull, order and upload the visible lights, then (unless mode 'off') build the light grid."""
-        lights = visible_lights(frame.scene.lights, frame.projection @ frame.view)
-        visible = len(lights)
+        table = light_table(frame.scene.lights)
+        idx = np.flatnonzero(visible_mask(table, frame.projection @ frame.view))
+        visible = len(idx)
         dropped = max(0, visible - self.settings["max_lights"])
-        lights = lights[: self.settings["max_lights"]]
+        idx = idx[: self.settings["max_lights"]]
         n_raster = 0
         if self.mode != "off":
             cam = frame.scene.camera
-            lights, n_raster = self._order(lights, frame.view, cam.near, cam.far)
-        data = pack_lights(lights).tobytes()
+            idx, n_raster = self._order(table, idx, frame.view, cam.near, cam.far)
+        data = pack_lights(table[idx]).tobytes()
         self._upload(data)
-        self.packed_lights = list(lights)
+        self.packed_lights = lights = [frame.scene.lights[i] for i in idx]
         grid = None
         if self.mode != "off":
             self._build_grid(frame, len(lights), n_raster)
