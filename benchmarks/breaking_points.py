@@ -9,6 +9,7 @@ a fixed A-buffer pool, an early-termination threshold) whose counters must expla
 Accuracy does not depend on the device, so this runs anywhere (llvmpipe included).
 Writes OUTDIR/breaking_points.json, .md and .png.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -19,10 +20,11 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
+from reference import compare, layered_quads_scene, reference_of  # noqa: E402
+
 from guaca_py import GuacaError, Renderer  # noqa: E402
 from guaca_py.context import create_context  # noqa: E402
 from guaca_py.methods import method_class  # noqa: E402
-from reference import compare, layered_quads_scene, reference_of  # noqa: E402
 
 # (label, method id, settings, counter that reports the limit being hit)
 CONFIGS = [
@@ -58,26 +60,42 @@ def run(out: Path, size: int, layer_counts: list[int]) -> dict:
                 frame = renderers[label].render(scene, size, size)
                 err = compare(frame.image, ref, mask)
                 frags = frame.stats.get("fragments", {})
-                row.update(rmse_255=err["rmse_255"], max_255=err["max_abs_255"],
-                           counter=counter, counted=int(frags.get(counter, 0)) if counter else None,
-                           warnings=frame.stats.get("warnings", []))
+                row.update(
+                    rmse_255=err["rmse_255"],
+                    max_255=err["max_abs_255"],
+                    counter=counter,
+                    counted=int(frags.get(counter, 0)) if counter else None,
+                    warnings=frame.stats.get("warnings", []),
+                )
             except GuacaError as exc:
                 row["unavailable"] = str(exc)
             rows.append(row)
         print(f"{n:>3} layers done", flush=True)
     for r in renderers.values():
         r.release()
-    return {"meta": {"device": caps.renderer, "size": size, "layers": layer_counts, "scene":
-                     "layered quads, shuffled, seed 5", "unit": "1/255, non-edge pixels"}, "rows": rows}
+    return {
+        "meta": {
+            "device": caps.renderer,
+            "size": size,
+            "layers": layer_counts,
+            "scene": "layered quads, shuffled, seed 5",
+            "unit": "1/255, non-edge pixels",
+        },
+        "rows": rows,
+    }
 
 
 def table(data: dict) -> str:
     """Markdown: RMSE / max per configuration and depth complexity, with the limit counter."""
     meta, rows = data["meta"], data["rows"]
     ns = meta["layers"]
-    out = [f"Error vs float64 reference (RMSE / max, {meta['unit']}), {meta['size']}² px, {meta['scene']}, "
-           f"device {meta['device']}. In brackets: the counter that reports the limit (fragments).", "",
-           "| config | " + " | ".join(f"{n} layers" for n in ns) + " |", "|---|" + "---|" * len(ns)]
+    out = [
+        f"Error vs float64 reference (RMSE / max, {meta['unit']}), {meta['size']}² px, {meta['scene']}, "
+        f"device {meta['device']}. In brackets: the counter that reports the limit (fragments).",
+        "",
+        "| config | " + " | ".join(f"{n} layers" for n in ns) + " |",
+        "|---|" + "---|" * len(ns),
+    ]
     for label, *_ in CONFIGS:
         cells = []
         for n in ns:
@@ -103,18 +121,26 @@ def chart(data: dict, path: Path) -> None:
     fig, ax = plt.subplots(figsize=(9, 5.5))
     floor = 0.01
     for i, (label, *_rest) in enumerate(CONFIGS):
-        pts = [(r["layers"], max(r["rmse_255"], floor)) for r in data["rows"]
-               if r["config"] == label and "rmse_255" in r]
+        pts = [
+            (r["layers"], max(r["rmse_255"], floor)) for r in data["rows"] if r["config"] == label and "rmse_255" in r
+        ]
         if pts:
             exact = method_class(_rest[0]).exact
-            ax.plot(*zip(*pts), marker="os^vD<>p*hH+x"[i % 13], label=label + ("" if exact else " ≈"),
-                    linestyle="--" if exact else "-")
+            ax.plot(
+                *zip(*pts),
+                marker="os^vD<>p*hH+x"[i % 13],
+                label=label + ("" if exact else " ≈"),
+                linestyle="--" if exact else "-",
+            )
     ax.set_xscale("log", base=2)
     ax.set_yscale("log")
     ax.set_xticks(data["meta"]["layers"], [str(n) for n in data["meta"]["layers"]])
     ax.set_xlabel("transparent layers in the stack (shuffled submission)")
     ax.set_ylabel(f"RMSE vs float64 reference, 1/255 (floor {floor})")
-    ax.set_title("Where each method breaks (dashed: exact methods held to a deliberately small bound; ≈ approximate)", fontsize=10)
+    ax.set_title(
+        "Where each method breaks (dashed: exact methods held to a deliberately small bound; ≈ approximate)",
+        fontsize=10,
+    )
     ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
     fig.savefig(path, dpi=120)

@@ -5,14 +5,16 @@ on the H100 it ran the same frame at 1980 MHz and, after other work, at under 10
 seconds at a time. Recording the clock beside the timings says which regime a table was taken in,
 and a point whose median clock was under 90% of the maximum is measured again (up to RETRIES).
 """
+
 from __future__ import annotations
 
 import shutil
 import statistics
 import subprocess
 import threading
+from collections.abc import Callable
 from functools import lru_cache
-from typing import Callable, TypeVar
+from typing import TypeVar
 
 T = TypeVar("T")
 
@@ -26,8 +28,12 @@ def max_sm_clock() -> int | None:
     if not exe:
         return None
     try:
-        out = subprocess.run([exe, "--query-gpu=clocks.max.sm", "--format=csv,noheader,nounits"],
-                             capture_output=True, text=True, timeout=10).stdout
+        out = subprocess.run(
+            [exe, "--query-gpu=clocks.max.sm", "--format=csv,noheader,nounits"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+        ).stdout
         return int(out.split()[0])
     except (ValueError, IndexError, subprocess.SubprocessError):
         return None
@@ -42,12 +48,15 @@ class ClockSampler:
         self._proc = None
         self._thread = None
 
-    def __enter__(self) -> "ClockSampler":
+    def __enter__(self) -> ClockSampler:
         exe = shutil.which("nvidia-smi")
         if exe:
-            self._proc = subprocess.Popen([exe, "--query-gpu=clocks.sm", "--format=csv,noheader,nounits",
-                                           f"-lms={self.period_ms}"], stdout=subprocess.PIPE,
-                                          stderr=subprocess.DEVNULL, text=True)
+            self._proc = subprocess.Popen(
+                [exe, "--query-gpu=clocks.sm", "--format=csv,noheader,nounits", f"-lms={self.period_ms}"],
+                stdout=subprocess.PIPE,
+                stderr=subprocess.DEVNULL,
+                text=True,
+            )
             self._thread = threading.Thread(target=self._read, daemon=True)
             self._thread.start()
         return self
@@ -79,8 +88,12 @@ def clock_summary(samples: list[int]) -> dict | None:
     """Median, min and max of SM clock samples in MHz, or None when there are none."""
     if not samples:
         return None
-    return {"sm_clock_mhz_median": statistics.median(samples), "sm_clock_mhz_min": min(samples),
-            "sm_clock_mhz_max": max(samples), "sm_clock_samples": len(samples)}
+    return {
+        "sm_clock_mhz_median": statistics.median(samples),
+        "sm_clock_mhz_min": min(samples),
+        "sm_clock_mhz_max": max(samples),
+        "sm_clock_samples": len(samples),
+    }
 
 
 def at_full_clock(measure: Callable[[], T], valid: Callable[[T], bool] = lambda _: True) -> tuple[T, ClockSampler, int]:
@@ -89,7 +102,7 @@ def at_full_clock(measure: Callable[[], T], valid: Callable[[T], bool] = lambda 
     Returns the last result, its sampler and the number of retries; an invalid result (a failed
     run) is not retried.
     """
-    for attempt in range(RETRIES + 1):
+    for attempt in range(RETRIES + 1):  # noqa: B007 - returned after the loop
         with ClockSampler() as clock:
             result = measure()
         if not valid(result) or not clock.throttled():

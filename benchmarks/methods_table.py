@@ -9,6 +9,7 @@ Error: (a) the demo scene, lit, linear output of pipelines/exact.yaml, against p
 scene (16 layers, shuffled submission) against the float64 CPU reference (tests/reference.py),
 non-edge pixels. Errors are in 1/255 units. Writes OUTDIR/methods.json, methods.md, methods.png.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -24,18 +25,19 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests"), str(ROOT / "benchmarks")]
 
 from gpu_clock import ClockSampler, at_full_clock, clock_summary  # noqa: E402
+from reference import compare, layered_quads_scene, reference_of  # noqa: E402
+
 from guaca_py import GuacaError, Renderer  # noqa: E402
 from guaca_py.benchmarking import measure_interleaved  # noqa: E402
 from guaca_py.context import create_context  # noqa: E402
 from guaca_py.methods import method_class, method_ids  # noqa: E402
 from guaca_py.scene.loader import demo_scene  # noqa: E402
-from reference import compare, layered_quads_scene, reference_of  # noqa: E402
 
 
 def linear_error(img: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
     """RMSE and max abs error in 1/255 of two linear images clipped to [0, 1]."""
     d = (np.clip(img, 0, 1) - np.clip(ref, 0, 1)) * 255.0
-    return float(np.sqrt(np.mean(d ** 2))), float(np.abs(d).max())
+    return float(np.sqrt(np.mean(d**2))), float(np.abs(d).max())
 
 
 def main(argv=None) -> int:
@@ -45,9 +47,13 @@ def main(argv=None) -> int:
     ap.add_argument("--frames", type=int, default=10)
     ap.add_argument("--warmup", type=int, default=5)
     ap.add_argument("--ref-size", type=int, default=192)
-    ap.add_argument("--timing", choices=("isolated", "interleaved"), default="isolated",
-                    help="isolated: each method in its own `guaca render` process, as a user runs it; "
-                         "interleaved: one process, one frame of each method per round")
+    ap.add_argument(
+        "--timing",
+        choices=("isolated", "interleaved"),
+        default="isolated",
+        help="isolated: each method in its own `guaca render` process, as a user runs it; "
+        "interleaved: one process, one frame of each method per round",
+    )
     ap.add_argument("--methods", nargs="*")
     ap.add_argument("--replot", action="store_true", help="only rebuild the table and chart from OUT/methods.json")
     args = ap.parse_args(argv)
@@ -85,23 +91,40 @@ def main(argv=None) -> int:
             continue
         try:
             r = Renderer("exact", ctx=ctx, method=mid)
-            row["demo_rmse_255"], row["demo_max_255"] = linear_error(r.render(demo, args.size, args.size).linear, exact_demo)
+            row["demo_rmse_255"], row["demo_max_255"] = linear_error(
+                r.render(demo, args.size, args.size).linear, exact_demo
+            )
             e = compare(r.render(layered, rs, rs).image, ref_img, ref_mask)
             row["ref_rmse_255"], row["ref_max_255"] = e["rmse_255"], e["max_abs_255"]
             r.release()
         except GuacaError as exc:
             row["failed"] = str(exc)
             del row["pass_ms"]
-        print(f"{mid:<26} " + (f"failed: {row['failed']}" if "failed" in row else
-              f"{row['total_ms']:8.3f} ms  passes {row['geometry_passes']}  "
-              f"err(demo) {row['demo_rmse_255']:.3f}/{row['demo_max_255']:.1f}  "
-              f"err(ref) {row['ref_rmse_255']:.3f}/{row['ref_max_255']:.1f}"), flush=True)
+        print(
+            f"{mid:<26} "
+            + (
+                f"failed: {row['failed']}"
+                if "failed" in row
+                else f"{row['total_ms']:8.3f} ms  passes {row['geometry_passes']}  "
+                f"err(demo) {row['demo_rmse_255']:.3f}/{row['demo_max_255']:.1f}  "
+                f"err(ref) {row['ref_rmse_255']:.3f}/{row['ref_max_255']:.1f}"
+            ),
+            flush=True,
+        )
     post = [sum(v for k, v in r["pass_ms"].items() if k in ("tone_mapping", "fxaa")) for r in rows if "pass_ms" in r]
-    meta = {"device": caps.renderer, "size": args.size, "frames": args.frames, "warmup": args.warmup,
-            "ref_size": rs, "insertion_path": caps.insertion_path, "timing": args.timing,
-            # identical post passes in every row: their spread shows how steady the clock was
-            "post_ms_min": min(post, default=0.0), "post_ms_max": max(post, default=0.0),
-            **(clock_summary(clock_samples) or {})}
+    meta = {
+        "device": caps.renderer,
+        "size": args.size,
+        "frames": args.frames,
+        "warmup": args.warmup,
+        "ref_size": rs,
+        "insertion_path": caps.insertion_path,
+        "timing": args.timing,
+        # identical post passes in every row: their spread shows how steady the clock was
+        "post_ms_min": min(post, default=0.0),
+        "post_ms_max": max(post, default=0.0),
+        **(clock_summary(clock_samples) or {}),
+    }
     (args.out / "methods.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=2))
     md = table(rows, meta)
     (args.out / "methods.md").write_text(md)
@@ -112,9 +135,15 @@ def main(argv=None) -> int:
 
 def _row_from_stats(s: dict, pass_ms: dict, total_ms: float) -> dict:
     """The timing columns of a row from a frame's stats and the measured per-pass medians."""
-    return dict(pass_ms=pass_ms, total_ms=total_ms, timer=s.get("timer", "?"),
-                geometry_passes=s.get("geometry_passes", 1), fragments=s.get("fragments", {}),
-                memory=s.get("memory", {}), warnings=s.get("warnings", []))
+    return dict(
+        pass_ms=pass_ms,
+        total_ms=total_ms,
+        timer=s.get("timer", "?"),
+        geometry_passes=s.get("geometry_passes", 1),
+        fragments=s.get("fragments", {}),
+        memory=s.get("memory", {}),
+        warnings=s.get("warnings", []),
+    )
 
 
 def time_interleaved(mids: list[str], ctx, scene, args) -> tuple[dict[str, dict], list[int]]:
@@ -129,7 +158,7 @@ def time_interleaved(mids: list[str], ctx, scene, args) -> tuple[dict[str, dict]
         with ClockSampler() as clock:
             ms = measure_interleaved(timed, scene, args.size, args.size, args.warmup, args.frames)
     except GuacaError as exc:
-        raise SystemExit(f"timing failed: {exc}")
+        raise SystemExit(f"timing failed: {exc}") from exc
     for mid, m in ms.items():
         out[mid] = _row_from_stats(m.last.stats, m.pass_ms, m.total_ms)
         timed[mid].release()
@@ -142,11 +171,30 @@ def time_isolated(mids: list[str], ctx, scene, args) -> tuple[dict[str, dict], l
     with tempfile.TemporaryDirectory() as tmp:
         for mid in mids:
             stats_path = Path(tmp) / f"{mid}.json"
-            cmd = [sys.executable, "-m", "guaca_py", "render", "--method", mid, "--width", str(args.size),
-                   "--height", str(args.size), "--warmup", str(args.warmup), "--frames", str(args.frames),
-                   "--out", str(Path(tmp) / f"{mid}.png"), "--stats", str(stats_path)]
-            proc, clock, retries = at_full_clock(lambda: subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT),
-                                                 valid=lambda p: p.returncode == 0)
+            cmd = [
+                sys.executable,
+                "-m",
+                "guaca_py",
+                "render",
+                "--method",
+                mid,
+                "--width",
+                str(args.size),
+                "--height",
+                str(args.size),
+                "--warmup",
+                str(args.warmup),
+                "--frames",
+                str(args.frames),
+                "--out",
+                str(Path(tmp) / f"{mid}.png"),
+                "--stats",
+                str(stats_path),
+            ]
+            proc, clock, retries = at_full_clock(
+                lambda cmd=cmd: subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT),
+                valid=lambda p: p.returncode == 0,
+            )
             if proc.returncode != 0:
                 out[mid] = {"failed": " ".join((proc.stderr or proc.stdout).strip().splitlines()[-1:])}
                 continue
@@ -174,33 +222,49 @@ def _mem_alloc_used(mem: dict) -> tuple[int, int]:
 
 def table(rows, meta) -> str:
     """Markdown table of the measured rows."""
-    how = {"isolated": "each method in its own `guaca render` process",
-           "interleaved": "methods interleaved frame by frame"}.get(meta.get("timing", "interleaved"))
+    how = {
+        "isolated": "each method in its own `guaca render` process",
+        "interleaved": "methods interleaved frame by frame",
+    }.get(meta.get("timing", "interleaved"))
     clocks = any("sm_clock_mhz_median" in r for r in rows)
-    out = [f"Device: {meta['device']} · {meta['size']}×{meta['size']} demo scene · median of {meta['frames']} "
-           f"frames after {meta['warmup']} warm-up, {how} · post passes (identical in every row) "
-           f"{meta['post_ms_min']:.3f}–{meta['post_ms_max']:.3f} ms"
-           + (f" · SM clock while timing {meta['sm_clock_mhz_median']:.0f} MHz median "
-              f"({meta['sm_clock_mhz_min']}–{meta['sm_clock_mhz_max']})" if "sm_clock_mhz_median" in meta else "")
-           + " · errors in 1/255 (RMSE / max)", "",
-           "Geometry ms is the G-buffer pass plus any pass that stores fragments; peeling and blending methods "
-           "draw their transparent geometry inside the composite pass, so compare totals.", "",
-           "| method | kind | geometry ms | lights ms | composite ms | post ms | total ms | geo passes | "
-           "memory MiB alloc / used | err demo vs exact | err unlit vs CPU ref |" + (" SM MHz |" if clocks else ""),
-           "|---|---|---|---|---|---|---|---|---|---|---|" + ("---|" if clocks else "")]
+    out = [
+        f"Device: {meta['device']} · {meta['size']}×{meta['size']} demo scene · median of {meta['frames']} "
+        f"frames after {meta['warmup']} warm-up, {how} · post passes (identical in every row) "
+        f"{meta['post_ms_min']:.3f}–{meta['post_ms_max']:.3f} ms"
+        + (
+            f" · SM clock while timing {meta['sm_clock_mhz_median']:.0f} MHz median "
+            f"({meta['sm_clock_mhz_min']}–{meta['sm_clock_mhz_max']})"
+            if "sm_clock_mhz_median" in meta
+            else ""
+        )
+        + " · errors in 1/255 (RMSE / max)",
+        "",
+        "Geometry ms is the G-buffer pass plus any pass that stores fragments; peeling and blending methods "
+        "draw their transparent geometry inside the composite pass, so compare totals.",
+        "",
+        "| method | kind | geometry ms | lights ms | composite ms | post ms | total ms | geo passes | "
+        "memory MiB alloc / used | err demo vs exact | err unlit vs CPU ref |" + (" SM MHz |" if clocks else ""),
+        "|---|---|---|---|---|---|---|---|---|---|---|" + ("---|" if clocks else ""),
+    ]
     for r in rows:
         if "pass_ms" not in r:
-            out.append(f"| {r['method']} | {'exact' if r['exact'] else 'approx'} | "
-                       + " | ".join(["—"] * 8) + f" | {r.get('skipped') or r.get('failed')} |" + (" |" if clocks else ""))
+            out.append(
+                f"| {r['method']} | {'exact' if r['exact'] else 'approx'} | "
+                + " | ".join(["—"] * 8)
+                + f" | {r.get('skipped') or r.get('failed')} |"
+                + (" |" if clocks else "")
+            )
             continue
         p = r["pass_ms"]
         post = sum(v for k, v in p.items() if k not in ("geometry", "light_culling", "composite"))
         alloc, used = _mem_alloc_used(r["memory"])
-        out.append(f"| {r['method']} | {'exact' if r['exact'] else 'approx'} | {p.get('geometry', 0):.3f} | "
-                   f"{p.get('light_culling', 0):.3f} | {p.get('composite', 0):.3f} | {post:.3f} | {r['total_ms']:.3f} | "
-                   f"{r['geometry_passes']} | {alloc / 2**20:.1f} / {used / 2**20:.1f} | "
-                   f"{r['demo_rmse_255']:.2f} / {r['demo_max_255']:.0f} | {r['ref_rmse_255']:.2f} / {r['ref_max_255']:.0f} |"
-                   + (f" {r['sm_clock_mhz_median']:.0f} |" if 'sm_clock_mhz_median' in r else " — |" if clocks else ""))
+        out.append(
+            f"| {r['method']} | {'exact' if r['exact'] else 'approx'} | {p.get('geometry', 0):.3f} | "
+            f"{p.get('light_culling', 0):.3f} | {p.get('composite', 0):.3f} | {post:.3f} | {r['total_ms']:.3f} | "
+            f"{r['geometry_passes']} | {alloc / 2**20:.1f} / {used / 2**20:.1f} | "
+            f"{r['demo_rmse_255']:.2f} / {r['demo_max_255']:.0f} | {r['ref_rmse_255']:.2f} / {r['ref_max_255']:.0f} |"
+            + (f" {r['sm_clock_mhz_median']:.0f} |" if "sm_clock_mhz_median" in r else " — |" if clocks else "")
+        )
     return "\n".join(out) + "\n"
 
 
@@ -213,17 +277,26 @@ def chart(rows, meta, path: Path) -> None:
 
     done = sorted((r for r in rows if "pass_ms" in r), key=lambda r: r["total_ms"])
     fig, (bars, scat) = plt.subplots(1, 2, figsize=(14, 6.5), gridspec_kw={"width_ratios": [1, 1.15]})
-    stages = [("geometry", "tab:blue"), ("light_culling", "tab:olive"), ("composite", "tab:orange"),
-              ("post", "tab:gray")]
+    stages = [
+        ("geometry", "tab:blue"),
+        ("light_culling", "tab:olive"),
+        ("composite", "tab:orange"),
+        ("post", "tab:gray"),
+    ]
     y = range(len(done))
     left = [0.0] * len(done)
     for stage, color in stages:
-        w = [sum(v for k, v in r["pass_ms"].items() if k not in ("geometry", "light_culling", "composite"))
-             if stage == "post" else r["pass_ms"].get(stage, 0.0) for r in done]
+        w = [
+            sum(v for k, v in r["pass_ms"].items() if k not in ("geometry", "light_culling", "composite"))
+            if stage == "post"
+            else r["pass_ms"].get(stage, 0.0)
+            for r in done
+        ]
         bars.barh(y, w, left=left, color=color, label=stage)
         left = [a + b for a, b in zip(left, w)]
-    bars.set_yticks(list(y), [f"{r['method']} ({r['geometry_passes']})" + ("" if r["exact"] else " ≈") for r in done],
-                    fontsize=8)
+    bars.set_yticks(
+        list(y), [f"{r['method']} ({r['geometry_passes']})" + ("" if r["exact"] else " ≈") for r in done], fontsize=8
+    )
     bars.invert_yaxis()
     bars.set_xlabel("GPU ms per frame (median); label: method (geometry passes), ≈ approximate")
     bars.legend(fontsize=8, loc="upper right")
@@ -233,16 +306,32 @@ def chart(rows, meta, path: Path) -> None:
     for i, r in enumerate(r for r in done if not r["exact"]):
         # alternate label sides: approximate methods often land close together
         err = max(r["demo_rmse_255"], floor)
-        scat.annotate(f"{r['method']} (max {r['demo_max_255']:.0f})", (r["total_ms"], err), fontsize=8,
-                      xytext=(5, 5 if i % 2 else -12), textcoords="offset points")
+        scat.annotate(
+            f"{r['method']} (max {r['demo_max_255']:.0f})",
+            (r["total_ms"], err),
+            fontsize=8,
+            xytext=(5, 5 if i % 2 else -12),
+            textcoords="offset points",
+        )
     for r in done:
-        scat.scatter(r["total_ms"], max(r["demo_rmse_255"], floor), marker="o" if r["exact"] else "^", s=36,
-                     color="tab:blue" if r["exact"] else "tab:red")
+        scat.scatter(
+            r["total_ms"],
+            max(r["demo_rmse_255"], floor),
+            marker="o" if r["exact"] else "^",
+            s=36,
+            color="tab:blue" if r["exact"] else "tab:red",
+        )
     exact = [r for r in done if r["exact"]]
     if exact:
         worst = max(r["demo_rmse_255"] for r in exact)
-        scat.annotate(f"{len(exact)} exact methods, RMSE ≤ {worst:.3f}", (min(r["total_ms"] for r in exact), floor),
-                      fontsize=8, xytext=(0, -14), textcoords="offset points", color="tab:blue")
+        scat.annotate(
+            f"{len(exact)} exact methods, RMSE ≤ {worst:.3f}",
+            (min(r["total_ms"] for r in exact), floor),
+            fontsize=8,
+            xytext=(0, -14),
+            textcoords="offset points",
+            color="tab:blue",
+        )
     scat.set_xscale("log")
     scat.set_yscale("log")
     scat.set_ylim(floor / 3, 100)

@@ -1,9 +1,20 @@
 """guaca_py: deferred shading with exact order-independent transparency (sorted A-buffer) for Python."""
+
 from .errors import ConfigError, DeviceError, GuacaError, ShaderCompileError, UnsupportedMethodError
 from .pipeline.config import PipelineConfig, load_pipeline, pipeline_from_text
 from .pipeline.frame import FrameResult
 from .renderer import Renderer
 
 __version__ = "0.1.0"
-__all__ = ["Renderer", "FrameResult", "PipelineConfig", "load_pipeline", "pipeline_from_text",
-           "GuacaError", "ConfigError", "DeviceError", "ShaderCompileError", "UnsupportedMethodError"]
+__all__ = [
+    "Renderer",
+    "FrameResult",
+    "PipelineConfig",
+    "load_pipeline",
+    "pipeline_from_text",
+    "GuacaError",
+    "ConfigError",
+    "DeviceError",
+    "ShaderCompileError",
+    "UnsupportedMethodError",
+]

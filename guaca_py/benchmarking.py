@@ -1,4 +1,5 @@
 """Measure frames the way the performance protocol asks: warm-up, then medians of per-pass times."""
+
 from __future__ import annotations
 
 import statistics
@@ -23,8 +24,9 @@ def measure(renderer, scene, width: int, height: int, warmup: int = 3, frames: i
     return measure_interleaved({"": renderer}, scene, width, height, warmup, frames)[""]
 
 
-def measure_interleaved(renderers: dict, scene, width: int, height: int, warmup: int = 5,
-                        frames: int = 10) -> dict[str, Measurement]:
+def measure_interleaved(
+    renderers: dict, scene, width: int, height: int, warmup: int = 5, frames: int = 10
+) -> dict[str, Measurement]:
     """Like measure() for several renderers at once, one frame of each per round."""
     for _ in range(warmup):
         for r in renderers.values():
@@ -38,6 +40,13 @@ def measure_interleaved(renderers: dict, scene, width: int, height: int, warmup:
             for name, p in res.stats["passes"].items():
                 samples[key].setdefault(name, []).append(p["ms"])
             totals[key].append(sum(p["ms"] for p in res.stats["passes"].values()))
-    return {k: Measurement({n: statistics.median(v) for n, v in samples[k].items()},
-                           statistics.median(totals[k]), len(totals[k]), last[k].stats.get("timer", "?"), last[k])
-            for k in renderers}
+    return {
+        k: Measurement(
+            {n: statistics.median(v) for n, v in samples[k].items()},
+            statistics.median(totals[k]),
+            len(totals[k]),
+            last[k].stats.get("timer", "?"),
+            last[k],
+        )
+        for k in renderers
+    }

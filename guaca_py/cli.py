@@ -1,4 +1,5 @@
 """Command line: `guaca render`, `guaca info`, `guaca methods`."""
+
 from __future__ import annotations
 
 import argparse
@@ -26,13 +27,18 @@ def _cmd_render(args) -> int:
         k, v = item.split("=", 1)
         # the settings live under the pipeline's `transparency:` key; accept that spelling too
         overrides[k.strip().removeprefix("transparency.")] = _parse_value(v)
-    renderer = Renderer(args.pipeline, method=args.method, method_overrides=overrides,
-                        material_paths=args.materials)
+    renderer = Renderer(args.pipeline, method=args.method, method_overrides=overrides, material_paths=args.materials)
     if args.frames > 1 or args.warmup:
         from .benchmarking import measure
 
-        m = measure(renderer, scene, args.width or renderer.config.resolution[0],
-                    args.height or renderer.config.resolution[1], args.warmup, args.frames)
+        m = measure(
+            renderer,
+            scene,
+            args.width or renderer.config.resolution[0],
+            args.height or renderer.config.resolution[1],
+            args.warmup,
+            args.frames,
+        )
         frame = m.last
         for name, ms in m.pass_ms.items():
             frame.stats["passes"][name]["ms"] = round(ms, 4)  # report medians
@@ -75,8 +81,10 @@ def _cmd_info(args) -> int:
     print(f"OpenGL:    {caps.version}")
     for k in ("atomic_int64", "fragment_interlock", "conservative_raster", "gpu_timers"):
         print(f"{k + ':':<22}{'yes' if d[k] else 'no'}")
-    print(f"A-buffer insertion path: {caps.insertion_path} "
-          f"({'64-bit atomicMax on (depth, pointer)' if caps.insertion_path == '64bit' else '32-bit CAS on immutable nodes'})")
+    print(
+        f"A-buffer insertion path: {caps.insertion_path} "
+        f"({'64-bit atomicMax on (depth, pointer)' if caps.insertion_path == '64bit' else '32-bit CAS on immutable nodes'})"
+    )
     return 0
 
 
@@ -89,8 +97,15 @@ def _cmd_methods(args) -> int:
     for mid in method_ids():
         cls = method_class(mid)
         reason = cls.unsupported_reason(caps)
-        rows.append((mid, "exact" if cls.exact else "approximate", cls.geometry_passes,
-                     "yes" if reason is None else f"no: {reason}", cls.summary))
+        rows.append(
+            (
+                mid,
+                "exact" if cls.exact else "approximate",
+                cls.geometry_passes,
+                "yes" if reason is None else f"no: {reason}",
+                cls.summary,
+            )
+        )
     print(f"{'id':<26}{'kind':<13}{'geometry passes':<17}{'runs here':<12}summary")
     for r in rows:
         print(f"{r[0]:<26}{r[1]:<13}{r[2]:<17}{r[3]:<12}{r[4]}")

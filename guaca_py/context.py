@@ -1,4 +1,5 @@
 """OpenGL context creation/adoption and one-time capability detection."""
+
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
@@ -19,11 +20,11 @@ class Capabilities:
     renderer: str
     vendor: str
     version: str
-    atomic_int64: bool           # 64-bit atomics on SSBOs (NV_shader_atomic_int64 + ARB_gpu_shader_int64)
-    fragment_interlock: bool     # ARB_fragment_shader_interlock
-    conservative_raster: bool    # NV_conservative_raster
-    gpu_timers: bool             # timer queries measure real GPU time (not on software rasterizers)
-    software: bool               # llvmpipe / softpipe / swrast
+    atomic_int64: bool  # 64-bit atomics on SSBOs (NV_shader_atomic_int64 + ARB_gpu_shader_int64)
+    fragment_interlock: bool  # ARB_fragment_shader_interlock
+    conservative_raster: bool  # NV_conservative_raster
+    gpu_timers: bool  # timer queries measure real GPU time (not on software rasterizers)
+    software: bool  # llvmpipe / softpipe / swrast
     framebuffer_fetch: bool = False  # EXT_shader_framebuffer_fetch: ordered read-modify-write of colour targets
 
     def as_dict(self) -> dict:
@@ -53,8 +54,13 @@ def detect_capabilities(ctx, disable: tuple[str, ...] = ()) -> Capabilities:
         if name not in caps:
             raise DeviceError(f"unknown capability '{name}' (known: {', '.join(caps)})")
         caps[name] = False
-    return Capabilities(renderer=renderer, vendor=info.get("GL_VENDOR", "?"),
-                        version=info.get("GL_VERSION", "?"), software=software, **caps)
+    return Capabilities(
+        renderer=renderer,
+        vendor=info.get("GL_VENDOR", "?"),
+        version=info.get("GL_VERSION", "?"),
+        software=software,
+        **caps,
+    )
 
 
 def create_context(ctx=None, disable: tuple[str, ...] = ()):

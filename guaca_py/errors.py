@@ -1,4 +1,5 @@
 """Error types of guaca_py: every failure names where it came from and what to do."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -11,8 +12,14 @@ class GuacaError(Exception):
 class ConfigError(GuacaError):
     """A file (scene, pipeline, material) is malformed; names file, line, key and reason."""
 
-    def __init__(self, reason: str, file: str | Path | None = None, line: int | None = None,
-                 key: str | None = None, hint: str | None = None):
+    def __init__(
+        self,
+        reason: str,
+        file: str | Path | None = None,
+        line: int | None = None,
+        key: str | None = None,
+        hint: str | None = None,
+    ):
         self.reason, self.file, self.line, self.key, self.hint = reason, file, line, key, hint
         where = str(file) if file is not None else "<input>"
         if line is not None:

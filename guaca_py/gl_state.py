@@ -1,4 +1,5 @@
 """Raw glEnable/glDisable for GL state that moderngl has no API for (e.g. NV conservative rasterization)."""
+
 from __future__ import annotations
 
 import ctypes
@@ -57,8 +58,10 @@ class RawGL:
 def _from_library(name: str) -> RawGL | None:
     try:
         lib = ctypes.CDLL(name)
-        fns = [ctypes.cast(getattr(lib, f), ctypes.c_void_p).value
-               for f in ("glEnable", "glDisable", "glIsEnabled", "glGetError")]
+        fns = [
+            ctypes.cast(getattr(lib, f), ctypes.c_void_p).value
+            for f in ("glEnable", "glDisable", "glIsEnabled", "glGetError")
+        ]
     except (OSError, AttributeError):
         return None
     if not all(fns):

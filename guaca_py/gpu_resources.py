@@ -1,4 +1,5 @@
 """GPU-side copies of meshes and textures, uploaded once and shared by all programs."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -24,12 +25,19 @@ class MeshCache:
         if key not in self._vaos:
             if id(mesh) not in self._buffers:
                 inter = np.hstack([mesh.positions, mesh.normals, mesh.texcoords]).astype(np.float32)
-                self._buffers[id(mesh)] = (mesh, self.ctx.buffer(inter.tobytes()),
-                                           self.ctx.buffer(np.ascontiguousarray(mesh.indices, dtype=np.uint32).tobytes()))
+                self._buffers[id(mesh)] = (
+                    mesh,
+                    self.ctx.buffer(inter.tobytes()),
+                    self.ctx.buffer(np.ascontiguousarray(mesh.indices, dtype=np.uint32).tobytes()),
+                )
             _, vbo, ibo = self._buffers[id(mesh)]
             self._vaos[key] = self.ctx.vertex_array(
-                prog, [(vbo, "3f 3f 2f", "in_position", "in_normal", "in_texcoord")], ibo,
-                index_element_size=4, skip_errors=True)
+                prog,
+                [(vbo, "3f 3f 2f", "in_position", "in_normal", "in_texcoord")],
+                ibo,
+                index_element_size=4,
+                skip_errors=True,
+            )
         return self._vaos[key]
 
     def release(self) -> None:

@@ -1,4 +1,5 @@
 """GPU exclusive prefix sum (multi-level block scan) and buffer fill, as compute shaders."""
+
 from __future__ import annotations
 
 import math

@@ -1,4 +1,5 @@
 """The renderer: builds the pass pipeline from a config and turns scenes into frames."""
+
 from __future__ import annotations
 
 import time
@@ -39,10 +40,17 @@ class Renderer:
 
     moderngl = moderngl
 
-    def __init__(self, pipeline: str | Path | PipelineConfig = "default", ctx=None, *,
-                 method: str | None = None, method_overrides: dict | None = None,
-                 material_paths: list[str | Path] | None = None, template_paths: list[str | Path] | None = None,
-                 disable: tuple[str, ...] = ()):
+    def __init__(
+        self,
+        pipeline: str | Path | PipelineConfig = "default",
+        ctx=None,
+        *,
+        method: str | None = None,
+        method_overrides: dict | None = None,
+        material_paths: list[str | Path] | None = None,
+        template_paths: list[str | Path] | None = None,
+        disable: tuple[str, ...] = (),
+    ):
         self.ctx, self.caps = create_context(ctx, disable)
         self.config = load_pipeline(pipeline)
         self.shaders = ShaderLibrary(self.ctx, template_paths)
@@ -56,8 +64,12 @@ class Renderer:
         for p, pc in zip(self.passes, self.config.passes):
             missing = [r for r in p.reads if r not in available]
             if missing:
-                raise ConfigError(f"pass '{p.name}' reads {', '.join(missing)} which no earlier pass writes",
-                                  self.config.source, pc.line, "passes")
+                raise ConfigError(
+                    f"pass '{p.name}' reads {', '.join(missing)} which no earlier pass writes",
+                    self.config.source,
+                    pc.line,
+                    "passes",
+                )
             available |= set(p.writes)
 
     def set_method(self, mid: str, overrides: dict | None = None) -> None:
@@ -81,25 +93,46 @@ class Renderer:
         """Program for (triangle mesh, material, opaque|transparent method variant), compiled once."""
         mat = draw.material
         mvars = self.method.template_vars() if transparent else {}
-        key = ("triangle_mesh", str(mat.path), transparent, self.method.id if transparent else None,
-               tuple(sorted((k, str(v)) for k, v in mvars.items())))
+        key = (
+            "triangle_mesh",
+            str(mat.path),
+            transparent,
+            self.method.id if transparent else None,
+            tuple(sorted((k, str(v)) for k, v in mvars.items())),
+        )
         smap = SourceMap()
         label = f"material '{mat.name}'"
 
         def methods(stage):
-            return "".join(smap.insert(m.source, m.file, m.first_line, f"{label} method '{m.name}'")
-                           for m in mat.methods.get(stage, []))
+            return "".join(
+                smap.insert(m.source, m.file, m.first_line, f"{label} method '{m.name}'")
+                for m in mat.methods.get(stage, [])
+            )
 
         common = {"material_uniforms": "\n".join(u.glsl_decl() for u in mat.uniforms.values())}
-        frag = dict(common, transparent=transparent, visibility_methods=methods("visibility"),
-                    visibility_calls=[m.name for m in mat.methods["visibility"]], **mvars,
-                    method_extensions=self.method.extensions() if transparent else "",
-                    method_fragment_template=self.method.fragment_template() if transparent else "")
-        vert = dict(common, displacement_methods=methods("displacement"),
-                    displacement_calls=[m.name for m in mat.methods["displacement"]])
-        return self.shaders.program(key, {"vertex_shader": ("geometry/triangle_mesh.vert.j2", vert),
-                                          "fragment_shader": ("geometry/triangle_mesh.frag.j2", frag)},
-                                    smap, label=f"{label} ({mat.path})")
+        frag = dict(
+            common,
+            transparent=transparent,
+            visibility_methods=methods("visibility"),
+            visibility_calls=[m.name for m in mat.methods["visibility"]],
+            **mvars,
+            method_extensions=self.method.extensions() if transparent else "",
+            method_fragment_template=self.method.fragment_template() if transparent else "",
+        )
+        vert = dict(
+            common,
+            displacement_methods=methods("displacement"),
+            displacement_calls=[m.name for m in mat.methods["displacement"]],
+        )
+        return self.shaders.program(
+            key,
+            {
+                "vertex_shader": ("geometry/triangle_mesh.vert.j2", vert),
+                "fragment_shader": ("geometry/triangle_mesh.frag.j2", frag),
+            },
+            smap,
+            label=f"{label} ({mat.path})",
+        )
 
     def _set_material_uniforms(self, prog, draw) -> None:
         unit = _TEXTURE_UNIT_BASE
@@ -163,12 +196,21 @@ class Renderer:
         cam = scene.camera
         draws = build_draw_list(scene, self.materials)
         frame = FrameState(self, scene, w, h, draws, cam.view_matrix(), cam.projection_matrix(w / h))
-        frame.stats.update({"method": self.method.id, "insertion_path": self.caps.insertion_path,
-                            "device": self.caps.renderer, "resolution": [w, h], "draws": len(draws),
-                            "transparent_draws": len(frame.transparent_draws), "passes": {}, "regrown": 0})
+        frame.stats.update(
+            {
+                "method": self.method.id,
+                "insertion_path": self.caps.insertion_path,
+                "device": self.caps.renderer,
+                "resolution": [w, h],
+                "draws": len(draws),
+                "transparent_draws": len(frame.transparent_draws),
+                "passes": {},
+                "regrown": 0,
+            }
+        )
         t0 = time.perf_counter()
         for p in self.passes:
-            for attempt in range(1 + 16):
+            for _attempt in range(1 + 16):
                 warned = len(frame.stats.get("warnings", []))
                 ms, kind = self._timed(lambda p=p: p.execute(frame))
                 if not frame.rerender:
@@ -180,10 +222,13 @@ class Renderer:
             frame.stats["timer"] = kind
         frame.stats.setdefault("memory", {}).update(self.method.memory() if frame.transparent_draws else {})
         declared = self.method.geometry_passes
-        frame.stats.setdefault("geometry_passes", int(declared) if frame.transparent_draws and declared.isdigit() else 1)
+        frame.stats.setdefault(
+            "geometry_passes", int(declared) if frame.transparent_draws and declared.isdigit() else 1
+        )
         if kind == "gpu" and any(p["ms"] >= 4294.9 for p in frame.stats["passes"].values()):
             frame.stats.setdefault("warnings", []).append(
-                "a pass took longer than the 32-bit GPU timer result can hold (4.29 s); its time is clipped")
+                "a pass took longer than the 32-bit GPU timer result can hold (4.29 s); its time is clipped"
+            )
         frame.stats["frame_wall_ms"] = round((time.perf_counter() - t0) * 1e3, 3)
         return self._read_back(frame)
 

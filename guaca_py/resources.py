@@ -1,4 +1,5 @@
 """Locate built-in materials, shader templates and pipelines (installed or in a checkout)."""
+
 from __future__ import annotations
 
 from pathlib import Path

@@ -1,4 +1,5 @@
 """YAML loading that keeps line numbers, so config errors can cite file:line."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -61,8 +62,9 @@ def load_yaml_text(text: str, file: str) -> Located:
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = mark.line + 1 if mark is not None else None
-        raise ConfigError(f"invalid YAML: {getattr(exc, 'problem', exc)}", file, line,
-                          hint="check indentation and brackets") from exc
+        raise ConfigError(
+            f"invalid YAML: {getattr(exc, 'problem', exc)}", file, line, hint="check indentation and brackets"
+        ) from exc
     lines: dict[tuple, int] = {}
     data = _convert(root, (), lines) if root is not None else {}
     return Located(data, lines, file)

@@ -1,4 +1,5 @@
 """Shared fixtures: one headless GL context per session, small scenes built in code."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -50,17 +51,29 @@ def renderers(renderer_factory):
 def unit_quad(w: float = 2.0, h: float = 2.0) -> MeshData:
     """Quad in the XY plane facing +Z."""
     p = np.array([[-w / 2, -h / 2, 0], [w / 2, -h / 2, 0], [w / 2, h / 2, 0], [-w / 2, h / 2, 0]], np.float32)
-    return MeshData(p, np.tile(np.float32([0, 0, 1]), (4, 1)), np.float32([[0, 0], [1, 0], [1, 1], [0, 1]]),
-                    np.uint32([[0, 1, 2], [0, 2, 3]]), "quad")
+    return MeshData(
+        p,
+        np.tile(np.float32([0, 0, 1]), (4, 1)),
+        np.float32([[0, 0], [1, 0], [1, 1], [0, 1]]),
+        np.uint32([[0, 1, 2], [0, 2, 3]]),
+        "quad",
+    )
 
 
 def quad_node(name, z, color, alpha, size=2.0, xy=(0.0, 0.0), material="unlit", rot=(0.0, 0.0, 0.0)) -> Node:
     """An unlit quad at depth z."""
-    return Node(name, Transform((xy[0], xy[1], z), rot), unit_quad(size, size),
-                MaterialInstance(material, {"color": list(color), "alpha": alpha}))
+    return Node(
+        name,
+        Transform((xy[0], xy[1], z), rot),
+        unit_quad(size, size),
+        MaterialInstance(material, {"color": list(color), "alpha": alpha}),
+    )
 
 
 def simple_scene(nodes, background=(0.1, 0.1, 0.1)) -> Scene:
     """Camera at z=5 looking at the origin."""
-    return Scene(camera=Camera(position=(0, 0, 5), target=(0, 0, 0), fov_y=50, near=0.1, far=100),
-                 background=background, nodes=list(nodes))
+    return Scene(
+        camera=Camera(position=(0, 0, 5), target=(0, 0, 0), fov_y=50, near=0.1, far=100),
+        background=background,
+        nodes=list(nodes),
+    )

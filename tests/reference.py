@@ -3,6 +3,7 @@
 Deliberately shares no math with the renderer: the camera basis, ray generation, projection
 and compositing are all derived here from the Camera's raw fields.
 """
+
 from __future__ import annotations
 
 import colorsys
@@ -72,17 +73,16 @@ def camera_rays(camera: Camera, width: int, height: int) -> tuple[np.ndarray, np
     aspect = width / height
     ndc_x = (np.arange(width) + 0.5) / width * 2.0 - 1.0
     ndc_y = 1.0 - (np.arange(height) + 0.5) / height * 2.0
-    dirs = (f[None, None, :]
-            + (ndc_x * tan_half * aspect)[None, :, None] * s
-            + (ndc_y * tan_half)[:, None, None] * u)
+    dirs = f[None, None, :] + (ndc_x * tan_half * aspect)[None, :, None] * s + (ndc_y * tan_half)[:, None, None] * u
     return eye, dirs, f
 
 
 # ----------------------------------------------------------------------------- ray casting
 
 
-def ray_hits(eye: np.ndarray, dirs: np.ndarray, tris: np.ndarray,
-             near: float, far: float) -> tuple[np.ndarray, np.ndarray]:
+def ray_hits(
+    eye: np.ndarray, dirs: np.ndarray, tris: np.ndarray, near: float, far: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Double-sided Möller–Trumbore of rays (P,3) from eye against tris (N,3,3): hit mask and t, both (P,N)."""
     v0 = tris[:, 0]
     e1 = tris[:, 1] - v0
@@ -90,8 +90,8 @@ def ray_hits(eye: np.ndarray, dirs: np.ndarray, tris: np.ndarray,
     tvec = eye[None, :] - v0
     # All rays share one origin, so every cross product is ray independent; via the scalar
     # triple product, det, u and v each become one (P,3)x(3,N) matrix product.
-    n_swapped = np.cross(e2, e1)           # d . (e2 x e1) == e1 . (d x e2) == det
-    u_axis = np.cross(e2, tvec)            # d . (e2 x tvec) == tvec . (d x e2)
+    n_swapped = np.cross(e2, e1)  # d . (e2 x e1) == e1 . (d x e2) == det
+    u_axis = np.cross(e2, tvec)  # d . (e2 x tvec) == tvec . (d x e2)
     qvec = np.cross(tvec, e1)
     det = dirs @ n_swapped.T
     # Grazing rays on (near) edge-on triangles have no stable hit; GPUs draw nothing there either.
@@ -106,9 +106,15 @@ def ray_hits(eye: np.ndarray, dirs: np.ndarray, tris: np.ndarray,
     return hit, t
 
 
-def render_reference(tris: np.ndarray, rgb: np.ndarray, alpha: np.ndarray, camera: Camera,
-                     width: int, height: int,
-                     background: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray]:
+def render_reference(
+    tris: np.ndarray,
+    rgb: np.ndarray,
+    alpha: np.ndarray,
+    camera: Camera,
+    width: int,
+    height: int,
+    background: tuple[float, float, float],
+) -> tuple[np.ndarray, np.ndarray]:
     """Exact per-pixel sorted front-to-back "under" composite: image (H,W,3) float64, layers (H,W) int."""
     eye, dirs, _ = camera_rays(camera, width, height)
     dirs = dirs.reshape(-1, 3)
@@ -120,7 +126,7 @@ def render_reference(tris: np.ndarray, rgb: np.ndarray, alpha: np.ndarray, camer
     rgb = np.asarray(rgb, dtype=np.float64).reshape(-1, 3)
     alpha = np.asarray(alpha, dtype=np.float64).reshape(-1)
     for start in range(0, n_pix, _PIXEL_CHUNK):
-        d = dirs[start:start + _PIXEL_CHUNK]
+        d = dirs[start : start + _PIXEL_CHUNK]
         color = np.zeros((len(d), 3))
         acc = np.zeros(len(d))
         if len(tris):
@@ -134,8 +140,8 @@ def render_reference(tris: np.ndarray, rgb: np.ndarray, alpha: np.ndarray, camer
                 a = np.where(k < count, alpha[tri], 0.0)
                 color += ((1.0 - acc) * a)[:, None] * rgb[tri]
                 acc += (1.0 - acc) * a
-            layers[start:start + len(d)] = count
-        image[start:start + len(d)] = color + (1.0 - acc)[:, None] * bg
+            layers[start : start + len(d)] = count
+        image[start : start + len(d)] = color + (1.0 - acc)[:, None] * bg
     return image.reshape(height, width, 3), layers.reshape(height, width)
 
 
@@ -164,7 +170,7 @@ def projected_edges(tris: np.ndarray, camera: Camera, width: int, height: int) -
     """
     eye, s, u, f, tan_half = camera_basis(camera)
     aspect = width / height
-    basis = np.stack([s, u, f])                      # rows: view x, view y, depth
+    basis = np.stack([s, u, f])  # rows: view x, view y, depth
     view = (np.asarray(tris, dtype=np.float64).reshape(-1, 3, 3) - eye) @ basis.T
     segs: list[np.ndarray] = []
     for tri in view:
@@ -180,8 +186,7 @@ def projected_edges(tris: np.ndarray, camera: Camera, width: int, height: int) -
     return np.concatenate(segs) if segs else np.zeros((0, 2, 2))
 
 
-def edge_mask(tris: np.ndarray, camera: Camera, width: int, height: int,
-              radius: float = 0.5) -> np.ndarray:
+def edge_mask(tris: np.ndarray, camera: Camera, width: int, height: int, radius: float = 0.5) -> np.ndarray:
     """(H,W) bool: pixel centres within `radius` pixels of any projected (near/far clipped) triangle edge."""
     mask = np.zeros((height, width), dtype=bool)
     reach = radius + 1e-9  # slack so pixels exactly at `radius` are excluded despite rounding
@@ -192,13 +197,13 @@ def edge_mask(tris: np.ndarray, camera: Camera, width: int, height: int,
         r1 = min(int(math.ceil(max(a[1], b[1]) + reach)), height - 1)
         if c0 > c1 or r0 > r1:
             continue
-        rr, cc = np.mgrid[r0:r1 + 1, c0:c1 + 1]
+        rr, cc = np.mgrid[r0 : r1 + 1, c0 : c1 + 1]
         px = np.stack([cc, rr], axis=-1).astype(np.float64)
         ab = b - a
         len2 = float(ab @ ab)
         w = np.clip(((px - a) @ ab) / len2, 0.0, 1.0) if len2 > 0.0 else np.zeros(rr.shape)
         dist2 = np.sum((px - (a + w[..., None] * ab)) ** 2, axis=-1)
-        mask[r0:r1 + 1, c0:c1 + 1] |= dist2 <= reach * reach
+        mask[r0 : r1 + 1, c0 : c1 + 1] |= dist2 <= reach * reach
     return mask
 
 
@@ -255,8 +260,9 @@ def unlit(color: tuple[float, float, float], alpha: float = 1.0) -> MaterialInst
 
 def quad_mesh(half_w: float, half_h: float, name: str = "quad") -> MeshData:
     """A quad in the object XY plane centred on the origin, facing +Z, as two triangles."""
-    pos = np.array([[-half_w, -half_h, 0], [half_w, -half_h, 0], [half_w, half_h, 0], [-half_w, half_h, 0]],
-                   dtype=np.float32)
+    pos = np.array(
+        [[-half_w, -half_h, 0], [half_w, -half_h, 0], [half_w, half_h, 0], [-half_w, half_h, 0]], dtype=np.float32
+    )
     return MeshData(
         positions=pos,
         normals=np.tile(np.array([0, 0, 1], dtype=np.float32), (4, 1)),
@@ -293,12 +299,12 @@ def _ordered(nodes: list[Node], order: str, seed: int, forward: str, reverse: st
 
 def _test_camera() -> Camera:
     """The camera shared by the test scenes: at +5 Z looking at the origin."""
-    return Camera(position=(0.0, 0.0, 5.0), target=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0),
-                  fov_y=50.0, near=0.1, far=100.0)
+    return Camera(position=(0.0, 0.0, 5.0), target=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_y=50.0, near=0.1, far=100.0)
 
 
-def layered_quads_scene(n_layers: int = 12, order: str = "front_to_back", seed: int = 0,
-                        with_opaque: bool = True) -> Scene:
+def layered_quads_scene(
+    n_layers: int = 12, order: str = "front_to_back", seed: int = 0, with_opaque: bool = True
+) -> Scene:
     """Stack of tilted transparent quads between z=2 and z=-3, plus an optional opaque quad mid-stack."""
     # Geometry comes from a fixed stream so every `order`/`seed` draws the identical scene.
     rng = np.random.default_rng(20240611)
@@ -311,13 +317,17 @@ def layered_quads_scene(n_layers: int = 12, order: str = "front_to_back", seed: 
         offset = rng.uniform(-0.8, 0.8, size=2)
         # Tilt of at most 4 degrees keeps neighbouring layers (>= 0.45 apart for 12) from crossing.
         tilt = rng.uniform(-4.0, 4.0, size=2)
-        nodes.append(Node(
-            name=f"layer{i:02d}",
-            transform=Transform(translation=(float(offset[0]), float(offset[1]), float(z)),
-                                rotation_deg=(float(tilt[0]), float(tilt[1]), 0.0)),
-            mesh=quad_mesh(float(half[0]), float(half[1]), name=f"layer{i:02d}"),
-            material=unlit(rgb, alpha),
-        ))
+        nodes.append(
+            Node(
+                name=f"layer{i:02d}",
+                transform=Transform(
+                    translation=(float(offset[0]), float(offset[1]), float(z)),
+                    rotation_deg=(float(tilt[0]), float(tilt[1]), 0.0),
+                ),
+                mesh=quad_mesh(float(half[0]), float(half[1]), name=f"layer{i:02d}"),
+                material=unlit(rgb, alpha),
+            )
+        )
     if with_opaque:
         mid = n_layers // 2
         z = 0.5 * (zs[mid - 1] + zs[mid]) if n_layers > 1 else -0.5
@@ -328,8 +338,11 @@ def layered_quads_scene(n_layers: int = 12, order: str = "front_to_back", seed: 
             material=unlit((0.95, 0.92, 0.85), 1.0),
         )
         nodes.insert(mid, opaque)
-    return Scene(camera=_test_camera(), background=(0.05, 0.08, 0.12),
-                 nodes=_ordered(nodes, order, seed, "front_to_back", "back_to_front"))
+    return Scene(
+        camera=_test_camera(),
+        background=(0.05, 0.08, 0.12),
+        nodes=_ordered(nodes, order, seed, "front_to_back", "back_to_front"),
+    )
 
 
 def interpenetrating_scene(order: str = "forward", seed: int = 0) -> Scene:
@@ -339,15 +352,21 @@ def interpenetrating_scene(order: str = "forward", seed: int = 0) -> Scene:
         (((-1.8, 1.2, 0.9), (2.1, 1.5, -0.8), (-0.3, -1.9, -0.1)), (0.2, 0.8, 0.3), 0.4),
         (((-2.2, -0.4, 1.1), (2.0, 0.3, -1.2), (0.4, -1.9, -0.5)), (0.2, 0.3, 0.9), 0.6),
     ]
-    children = [Node(name=f"tri{i}", mesh=triangle_mesh(*pts, name=f"tri{i}"), material=unlit(c, a))
-                for i, (pts, c, a) in enumerate(specs)]
-    children.append(Node(
-        name="opaque_front",
-        mesh=triangle_mesh((0.3, -0.2, 1.5), (1.6, -0.4, 1.6), (1.0, 1.0, 1.4), name="opaque_front"),
-        material=unlit((0.9, 0.9, 0.3), 1.0),
-    ))
+    children = [
+        Node(name=f"tri{i}", mesh=triangle_mesh(*pts, name=f"tri{i}"), material=unlit(c, a))
+        for i, (pts, c, a) in enumerate(specs)
+    ]
+    children.append(
+        Node(
+            name="opaque_front",
+            mesh=triangle_mesh((0.3, -0.2, 1.5), (1.6, -0.4, 1.6), (1.0, 1.0, 1.4), name="opaque_front"),
+            material=unlit((0.9, 0.9, 0.3), 1.0),
+        )
+    )
     # A non-trivial parent transform checks that world matrices are composed, not just local ones.
-    group = Node(name="group",
-                 transform=Transform(translation=(0.1, -0.1, -0.5), rotation_deg=(0.0, 10.0, 15.0)),
-                 children=_ordered(children, order, seed, "forward", "reverse"))
+    group = Node(
+        name="group",
+        transform=Transform(translation=(0.1, -0.1, -0.5), rotation_deg=(0.0, 10.0, 15.0)),
+        children=_ordered(children, order, seed, "forward", "reverse"),
+    )
     return Scene(camera=_test_camera(), background=(0.05, 0.08, 0.12), nodes=[group])

@@ -1,15 +1,15 @@
 """The shared PBR BRDF (shading/brdf.glsl.j2) and light formulas (shading/lighting.glsl.j2) against float64 numpy."""
+
 from __future__ import annotations
 
 import math
 
 import numpy as np
 import pytest
+from conftest import unit_quad
 
 from guaca_py import pipeline_from_text
 from guaca_py.scene.graph import Camera, Light, MaterialInstance, Node, Scene, Transform
-
-from conftest import unit_quad
 
 ROUGHNESS = (0.25, 0.5, 1.0)
 VIEW_COS = (1.0, 0.5, 0.1)
@@ -68,9 +68,14 @@ def glsl_brdf(gl_context):
         bi, bo = gl_context.buffer(data.tobytes()), gl_context.buffer(reserve=data.nbytes)
         bi.bind_to_storage_buffer(0)
         bo.bind_to_storage_buffer(1)
-        for name, value in (("gua_n", tuple(map(float, n))), ("gua_v", tuple(map(float, v))),
-                            ("gua_albedo", tuple(map(float, albedo))), ("gua_roughness", float(rough)),
-                            ("gua_metalness", float(metal)), ("gua_count", len(ls))):
+        for name, value in (
+            ("gua_n", tuple(map(float, n))),
+            ("gua_v", tuple(map(float, v))),
+            ("gua_albedo", tuple(map(float, albedo))),
+            ("gua_roughness", float(rough)),
+            ("gua_metalness", float(metal)),
+            ("gua_count", len(ls)),
+        ):
             prog[name] = value
         prog.run(-(-len(ls) // 64))
         gl_context.memory_barrier()
@@ -112,11 +117,11 @@ def test_fresnel_reaches_one_at_grazing(glsl_brdf):
     cos = np.array([1.0, 0.5, 0.1, 1e-2, 1e-3, 0.0])
     f = glsl_brdf((0, 0, 1), (0, 0, 1), np.tile([0.0, 0.0, 1.0], (len(cos), 1)), (1, 1, 1), 0.5, 0.0, cos)[:, 3]
     assert f[0] == pytest.approx(0.04, abs=1e-6)
-    assert np.all(np.diff(f) > 0)                       # monotone towards grazing
+    assert np.all(np.diff(f) > 0)  # monotone towards grazing
     assert f[-1] == pytest.approx(1.0, abs=1e-6) and f[-2] > 0.995
     # a metal's specular reflection at grazing turns white whatever its color
-    n, v = np.array([0, 0, 1.0]), np.array([math.sqrt(1 - 0.02 ** 2), 0, 0.02])
-    l = np.array([[-v[0], 0, v[2]]])                    # mirror direction
+    n, v = np.array([0, 0, 1.0]), np.array([math.sqrt(1 - 0.02**2), 0, 0.02])
+    l = np.array([[-v[0], 0, v[2]]])  # mirror direction
     c = glsl_brdf(n, v, l, (1.0, 0.2, 0.0), 0.3, 1.0)[0, :3]
     assert c.min() / c.max() > 0.85
 
@@ -134,11 +139,11 @@ def _furnace_samples(nv, rough, k=128):
     v = np.array([math.sqrt(1 - nv * nv), 0.0, nv])
     a2 = alpha_of(rough) ** 2
     xi, phi = _grid(k)
-    c2 = (1 - xi) / (1 + (a2 - 1) * xi)                 # GGX: cos^2 of the half-vector angle
+    c2 = (1 - xi) / (1 + (a2 - 1) * xi)  # GGX: cos^2 of the half-vector angle
     ch, sh = np.sqrt(c2), np.sqrt(1 - c2)
     h = np.stack([sh * np.cos(phi), sh * np.sin(phi), ch], -1)
     l_spec = 2 * (h @ v)[:, None] * h - v
-    l_spec[(h @ v) <= 0] = (0.0, 0.0, -1.0)              # wasted sample: below the horizon, f = 0
+    l_spec[(h @ v) <= 0] = (0.0, 0.0, -1.0)  # wasted sample: below the horizon, f = 0
     s = np.sqrt(xi)
     l_diff = np.stack([s * np.cos(phi), s * np.sin(phi), np.sqrt(1 - xi)], -1)
     ls = np.concatenate([l_spec, l_diff])
@@ -147,7 +152,9 @@ def _furnace_samples(nv, rough, k=128):
         hh = v + l
         hh /= np.maximum(np.linalg.norm(hh, axis=-1, keepdims=True), 1e-300)
         vh = hh @ v
-        return np.where((vh > 0) & (l[:, 2] > 0), ggx_d(hh[:, 2], alpha_of(rough)) * hh[:, 2] / (4 * np.maximum(vh, 1e-300)), 0.0)
+        return np.where(
+            (vh > 0) & (l[:, 2] > 0), ggx_d(hh[:, 2], alpha_of(rough)) * hh[:, 2] / (4 * np.maximum(vh, 1e-300)), 0.0
+        )
 
     m = len(xi)
     weight = 1.0 / (m * pdf_spec(ls) + m * np.maximum(ls[:, 2], 0.0) / math.pi + 1e-300)
@@ -196,7 +203,7 @@ def _radiance(light: Light, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     d = np.asarray(light.position) - p
     dist2 = (d * d).sum(axis=1)
     l = d / np.sqrt(dist2)[:, None]
-    window = np.clip(1 - (dist2 / light.radius ** 2) ** 2, 0, 1) ** 2
+    window = np.clip(1 - (dist2 / light.radius**2) ** 2, 0, 1) ** 2
     att = window / np.maximum(dist2, 1e-2)
     if light.type == "spot":
         axis = np.asarray(light.direction) / np.linalg.norm(light.direction)
@@ -209,14 +216,30 @@ def _radiance(light: Light, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 @pytest.mark.parametrize("kind", ["point", "spot", "directional"])
 def test_light_formulas_match_numpy(renderer_factory, kind):
-    lights = {"point": [Light("point", (0.4, 0.3, 0.8), color=(1.0, 0.8, 0.6), intensity=1.5, radius=1.6)],
-              "spot": [Light("spot", (0.2, -0.1, 1.5), direction=(-0.1, 0.1, -1.0), color=(0.6, 0.9, 1.0),
-                             intensity=3.0, radius=3.0, inner_angle_deg=12, outer_angle_deg=25)],
-              "directional": [Light("directional", direction=(-0.3, -0.2, -1.0), intensity=0.7)]}[kind]
+    lights = {
+        "point": [Light("point", (0.4, 0.3, 0.8), color=(1.0, 0.8, 0.6), intensity=1.5, radius=1.6)],
+        "spot": [
+            Light(
+                "spot",
+                (0.2, -0.1, 1.5),
+                direction=(-0.1, 0.1, -1.0),
+                color=(0.6, 0.9, 1.0),
+                intensity=3.0,
+                radius=3.0,
+                inner_angle_deg=12,
+                outer_angle_deg=25,
+            )
+        ],
+        "directional": [Light("directional", direction=(-0.3, -0.2, -1.0), intensity=0.7)],
+    }[kind]
     size, w = 10.0, 48
     cam = Camera(position=(0, 0, 3), target=(0, 0, 0), fov_y=50, near=0.1, far=100)
-    plane = Node("plane", Transform(), unit_quad(size, size),
-                 MaterialInstance("pbr", {"albedo": [0.5, 0.75, 0.25], "roughness": 0.5, "metalness": 0.0}))
+    plane = Node(
+        "plane",
+        Transform(),
+        unit_quad(size, size),
+        MaterialInstance("pbr", {"albedo": [0.5, 0.75, 0.25], "roughness": 0.5, "metalness": 0.0}),
+    )
     scene = Scene(camera=cam, background=(0, 0, 0), nodes=[plane], lights=lights)
     frame = renderer_factory(pipeline_from_text(LIT)).render(scene, w, w)
     # pixel centres -> points on the z = 0 plane (rows top to bottom like the image)
@@ -230,8 +253,8 @@ def test_light_formulas_match_numpy(renderer_factory, kind):
     want = np.zeros_like(p)
     for light in lights:
         rad, l = _radiance(light, p)
-        for i in range(len(p)):   # per pixel: the view direction varies
-            want[i] += rad[i] * brdf_cos((0, 0, 1), v[i], l[i:i + 1], (0.5, 0.75, 0.25), 0.5, 0.0)[0]
+        for i in range(len(p)):  # per pixel: the view direction varies
+            want[i] += rad[i] * brdf_cos((0, 0, 1), v[i], l[i : i + 1], (0.5, 0.75, 0.25), 0.5, 0.0)[0]
     got = frame.linear.reshape(-1, 3).astype(np.float64)
     err = np.abs(got - want)
     print(f"{kind}: max error {err.max():.2e} of peak {want.max():.3f}")

@@ -1,4 +1,5 @@
 """The breaking-points sweep: every error it reports is explained by the limit counter it names."""
+
 from __future__ import annotations
 
 import sys

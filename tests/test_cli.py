@@ -1,4 +1,5 @@
 """The `guaca` command line: render with stats, overflow reporting, info, errors, python -m."""
+
 from __future__ import annotations
 
 import json
@@ -38,8 +39,10 @@ def scene_file(tmp_path):
 
 def test_render_writes_png_and_stats(scene_file, tmp_path, capsys):
     out, stats = tmp_path / "o.png", tmp_path / "s.json"
-    assert main(["render", str(scene_file), "--width", "64", "--height", "48", "--out", str(out),
-                 "--stats", str(stats)]) == 0
+    assert (
+        main(["render", str(scene_file), "--width", "64", "--height", "48", "--out", str(out), "--stats", str(stats)])
+        == 0
+    )
     from PIL import Image
 
     assert Image.open(out).size == (64, 48)
@@ -54,8 +57,24 @@ def test_render_writes_png_and_stats(scene_file, tmp_path, capsys):
 def test_tiny_budget_overflow_is_reported(scene_file, tmp_path, capsys):
     # the key may be written as in the pipeline file (transparency.budget_mb) or bare (budget_mb)
     stats = tmp_path / "s.json"
-    code = main(["render", str(scene_file), "--pipeline", "exact", "--width", "64", "--height", "64",
-                 "--set", "transparency.budget_mb=0.001", "--out", str(tmp_path / "o.png"), "--stats", str(stats)])
+    code = main(
+        [
+            "render",
+            str(scene_file),
+            "--pipeline",
+            "exact",
+            "--width",
+            "64",
+            "--height",
+            "64",
+            "--set",
+            "transparency.budget_mb=0.001",
+            "--out",
+            str(tmp_path / "o.png"),
+            "--stats",
+            str(stats),
+        ]
+    )
     assert code == 0
     err = capsys.readouterr().err
     assert "overflow" in err.lower()

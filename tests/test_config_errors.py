@@ -1,4 +1,5 @@
 """Bad pipeline configs and materials are rejected with file, line, key and reason."""
+
 from __future__ import annotations
 
 import json
@@ -33,19 +34,28 @@ def test_good_pipeline_parses_settings():
     assert cfg.pass_settings("light_culling")["mode"] == "off"  # YAML 'off' stays a word
 
 
-@pytest.mark.parametrize("text,line,needle", [
-    ("passes: [geometry, light_culling\n", 2, "invalid YAML"),
-    (GOOD.replace("tone_mapping", "bloom"), 7, "unknown pass 'bloom'"),
-    (GOOD.replace("  - geometry: {}\n  - light_culling: {mode: off}\n",
-                  "  - light_culling: {mode: off}\n  - geometry: {}\n"), 4, "wrong pass order"),
-    (GOOD.replace("  - composite: {}\n", ""), 3, "compulsory pass 'composite' is missing"),
-    (GOOD.replace("exposure: 1.5", "exposure: -2"), 7, "must be > 0"),
-    (GOOD.replace("exposure: 1.5", "exposre: 1"), 7, "unknown setting 'exposre'"),
-    (GOOD.replace("threshold: 0.98", "threshold: 1.5"), 2, "must be in (0, 1]"),
-    (GOOD.replace("presort_lf_et", "magic_oit"), 2, "unknown transparency method 'magic_oit'"),
-    ("colour: red\n" + GOOD, 1, "unknown key 'colour'"),
-    (GOOD.replace("[64, 64]", "[64]"), 1, "[width, height]"),
-])
+@pytest.mark.parametrize(
+    "text,line,needle",
+    [
+        ("passes: [geometry, light_culling\n", 2, "invalid YAML"),
+        (GOOD.replace("tone_mapping", "bloom"), 7, "unknown pass 'bloom'"),
+        (
+            GOOD.replace(
+                "  - geometry: {}\n  - light_culling: {mode: off}\n",
+                "  - light_culling: {mode: off}\n  - geometry: {}\n",
+            ),
+            4,
+            "wrong pass order",
+        ),
+        (GOOD.replace("  - composite: {}\n", ""), 3, "compulsory pass 'composite' is missing"),
+        (GOOD.replace("exposure: 1.5", "exposure: -2"), 7, "must be > 0"),
+        (GOOD.replace("exposure: 1.5", "exposre: 1"), 7, "unknown setting 'exposre'"),
+        (GOOD.replace("threshold: 0.98", "threshold: 1.5"), 2, "must be in (0, 1]"),
+        (GOOD.replace("presort_lf_et", "magic_oit"), 2, "unknown transparency method 'magic_oit'"),
+        ("colour: red\n" + GOOD, 1, "unknown key 'colour'"),
+        (GOOD.replace("[64, 64]", "[64]"), 1, "[width, height]"),
+    ],
+)
 def test_bad_pipeline_rejected_with_location(text, line, needle):
     with pytest.raises(ConfigError) as err:
         pipeline_from_text(text, "bad.yaml")
@@ -110,19 +120,32 @@ def test_transparency_decided_from_material():
 def test_glsl_error_cites_material_file_and_line(tmp_path, renderer_factory):
     from conftest import quad_node, simple_scene
 
-    _material(tmp_path, {"name": "broken", "uniforms": {"alpha": {"type": "float", "default": 0.5},
-                                                        "color": {"type": "vec3"}},
-                         "visibility": [{"name": "broken", "source": [
-                             "void broken() {",
-                             "    gua_alpha = alpha;",
-                             "    gua_color = vec3(undefined_thing);",
-                             "}"]}]}, "broken.json")
+    _material(
+        tmp_path,
+        {
+            "name": "broken",
+            "uniforms": {"alpha": {"type": "float", "default": 0.5}, "color": {"type": "vec3"}},
+            "visibility": [
+                {
+                    "name": "broken",
+                    "source": [
+                        "void broken() {",
+                        "    gua_alpha = alpha;",
+                        "    gua_color = vec3(undefined_thing);",
+                        "}",
+                    ],
+                }
+            ],
+        },
+        "broken.json",
+    )
     r = renderer_factory("exact", material_paths=[tmp_path])
     scene = simple_scene([quad_node("q", 0, (1, 0, 0), 0.5, material="broken")])
     with pytest.raises(ShaderCompileError) as err:
         r.render(scene, 32, 32)
     msg = str(err.value)
-    src_line = next(i for i, l in enumerate((tmp_path / "broken.json").read_text().splitlines(), 1)
-                    if "undefined_thing" in l)
+    src_line = next(
+        i for i, l in enumerate((tmp_path / "broken.json").read_text().splitlines(), 1) if "undefined_thing" in l
+    )
     assert f"broken.json:{src_line}:" in msg, msg
     assert "undefined_thing" in msg

@@ -1,13 +1,13 @@
 """The default A-buffer methods against the float64 reference, plus early termination, overflow, opaque-only."""
+
 from __future__ import annotations
 
 import re
 
 import numpy as np
 import pytest
-
-from conftest import quad_node, simple_scene
 import reference
+from conftest import quad_node, simple_scene
 from reference import compare, interpenetrating_scene, layered_quads_scene
 
 SIZE = 96
@@ -131,8 +131,10 @@ def test_long_equal_depth_runs_blend_in_draw_order(renderer_factory, method):
     # others, submitted shuffled: they blend in draw order on every run, as in the reference
     rng = np.random.default_rng(8)
     nodes = [quad_node(f"c{i:02d}", 0.0, tuple(rng.uniform(0.1, 1.0, 3)), 0.12, size=12.0) for i in range(12)]
-    nodes += [quad_node("front", 0.8, (0.9, 0.9, 0.2), 0.2, size=12.0),
-              quad_node("back", -0.8, (0.2, 0.9, 0.9), 0.3, size=12.0)]
+    nodes += [
+        quad_node("front", 0.8, (0.9, 0.9, 0.2), 0.2, size=12.0),
+        quad_node("back", -0.8, (0.2, 0.9, 0.9), 0.3, size=12.0),
+    ]
     scene = simple_scene([nodes[i] for i in rng.permutation(len(nodes))])
     ref, mask, layers = reference_of(scene, 48, 48)
     assert layers[~mask].max() == 14

@@ -1,4 +1,5 @@
 """Tiled light culling: the light grid against the exact float64 CPU overlap, images with culling on/off, config, debug views."""
+
 from __future__ import annotations
 
 import json
@@ -9,14 +10,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import quad_node, simple_scene, unit_quad
 
 from guaca_py import ConfigError, DeviceError, pipeline_from_text
 from guaca_py.passes.debug_views import heat_color, legend_rows
 from guaca_py.passes.light_grid_cpu import compare_grids, exact_tile_lights
 from guaca_py.scene.graph import Camera, Light, MaterialInstance, Node, Scene, Transform
 from guaca_py.scene.loader import load_scene
-
-from conftest import quad_node, simple_scene, unit_quad
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -40,19 +40,29 @@ def random_lights(rng, n: int, cam: Camera) -> list[Light]:
     out = []
     for i in range(n):
         kind = i % 5
-        if kind == 0:                                   # around the camera, often containing it
+        if kind == 0:  # around the camera, often containing it
             pos, rad = eye + rng.normal(size=3) * 0.6, rng.uniform(0.05, 2.0)
-        elif kind == 1:                                 # behind the camera
+        elif kind == 1:  # behind the camera
             pos, rad = eye + back * rng.uniform(0.2, 4.0) + rng.normal(size=3), rng.uniform(0.2, 5.0)
-        elif kind == 2:                                 # far to the side: partly off-screen
+        elif kind == 2:  # far to the side: partly off-screen
             pos = np.array([rng.choice([-1, 1]) * rng.uniform(3, 8), rng.uniform(-4, 4), rng.uniform(-6, 2)])
             rad = rng.uniform(1.0, 6.0)
         else:
             pos = np.array([rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-15, 4)])
             rad = rng.uniform(0.1, 3.0) if rng.random() < 0.85 else rng.uniform(0.01, 0.1)
         d = rng.normal(size=3)
-        out.append(Light("spot" if i % 2 else "point", tuple(pos), tuple(d / np.linalg.norm(d)), (1, 1, 1), 1.0,
-                         float(rad), inner_angle_deg=1.0, outer_angle_deg=float(rng.uniform(2, 89))))
+        out.append(
+            Light(
+                "spot" if i % 2 else "point",
+                tuple(pos),
+                tuple(d / np.linalg.norm(d)),
+                (1, 1, 1),
+                1.0,
+                float(rad),
+                inner_angle_deg=1.0,
+                outer_angle_deg=float(rng.uniform(2, 89)),
+            )
+        )
     return out
 
 
@@ -66,8 +76,13 @@ CASES = [  # (seed, width, height, tile)
 def _grid_vs_exact(renderer_factory, mode: str, seed: int, w: int, h: int, tile: int) -> dict:
     rng = np.random.default_rng(seed)
     scene = simple_scene([quad_node("q", 0.0, (1, 1, 1), 1.0, size=3.0)])
-    scene.camera = Camera(position=tuple(rng.uniform(-1, 1, 3) + [0, 0, 5]), target=tuple(rng.uniform(-0.5, 0.5, 3)),
-                          fov_y=float(rng.uniform(40, 90)), near=0.1, far=60.0)
+    scene.camera = Camera(
+        position=tuple(rng.uniform(-1, 1, 3) + [0, 0, 5]),
+        target=tuple(rng.uniform(-0.5, 0.5, 3)),
+        fov_y=float(rng.uniform(40, 90)),
+        near=0.1,
+        far=60.0,
+    )
     scene.lights = random_lights(rng, 140, scene.camera)
     r = renderer_factory(pipeline(mode, tile))
     frame = r.render(scene, w, h)
@@ -90,10 +105,12 @@ def _grid_vs_exact(renderer_factory, mode: str, seed: int, w: int, h: int, tile:
 @pytest.mark.parametrize("seed,w,h,tile", CASES)
 def test_fallback_grid_covers_every_exact_overlap(renderer_factory, seed, w, h, tile):
     c = _grid_vs_exact(renderer_factory, "fallback", seed, w, h, tile)
-    print(f"fallback {w}x{h} tile {tile}: {c['visible']} lights, exact pairs {c['exact_pairs']}, "
-          f"extra {c['extra']} ({100 * c['extra'] / c['exact_pairs']:.1f}%), missing {c['missing']}")
+    print(
+        f"fallback {w}x{h} tile {tile}: {c['visible']} lights, exact pairs {c['exact_pairs']}, "
+        f"extra {c['extra']} ({100 * c['extra'] / c['exact_pairs']:.1f}%), missing {c['missing']}"
+    )
     assert c["missing"] == 0, c
-    assert c["extra"] <= 0.08 * c["exact_pairs"]   # proxies are ~4% larger than the volumes
+    assert c["extra"] <= 0.08 * c["exact_pairs"]  # proxies are ~4% larger than the volumes
 
 
 @pytest.mark.parametrize("seed,w,h,tile", CASES[:2])
@@ -103,7 +120,9 @@ def test_conservative_grid_covers_every_exact_overlap(renderer_factory, gl_conte
     if not detect_capabilities(gl_context).conservative_raster:
         pytest.skip("device has no GL_NV_conservative_raster (llvmpipe): the fallback is tested instead")
     c = _grid_vs_exact(renderer_factory, "conservative", seed, w, h, tile)
-    print(f"conservative {w}x{h} tile {tile}: exact pairs {c['exact_pairs']}, extra {c['extra']}, missing {c['missing']}")
+    print(
+        f"conservative {w}x{h} tile {tile}: exact pairs {c['exact_pairs']}, extra {c['extra']}, missing {c['missing']}"
+    )
     assert c["missing"] == 0, c
 
 
@@ -122,24 +141,28 @@ def test_plain_rasterization_would_miss_tiles(renderer_factory):
     scene.lights = random_lights(rng, 120, scene.camera)
     r = renderer_factory(pipeline("fallback"))
     lc = r.pass_named("light_culling")
-    lc.mode, lc._raw_gl = "conservative", NoOp()   # the non-dilating program with ordinary rasterization
+    lc.mode, lc._raw_gl = "conservative", NoOp()  # the non-dilating program with ordinary rasterization
     r.render(scene, 96, 96)
-    exact = exact_tile_lights(lc.packed_lights, scene.camera.view_matrix(), scene.camera.projection_matrix(1.0),
-                              96, 96, 16)
+    exact = exact_tile_lights(
+        lc.packed_lights, scene.camera.view_matrix(), scene.camera.projection_matrix(1.0), 96, 96, 16
+    )
     assert compare_grids(exact, lc.grid_bits())["missing"] > 10
 
 
 def test_grid_check_in_stats_and_every_tile_lights(renderer_factory):
     cam = Camera(position=(0, 0, 5), target=(0, 0, 0), fov_y=50, near=0.1, far=30)
-    lights = [Light("directional", direction=(0, -1, -1)),
-              Light("point", (0, 0, 5), radius=40.0),          # spans near and far planes: every tile
-              Light("point", (1, 1, 0), radius=0.5)]
+    lights = [
+        Light("directional", direction=(0, -1, -1)),
+        Light("point", (0, 0, 5), radius=40.0),  # spans near and far planes: every tile
+        Light("point", (1, 1, 0), radius=0.5),
+    ]
     scene = Scene(camera=cam, nodes=[quad_node("q", 0, (1, 1, 1), 1.0)], lights=lights)
     frame = renderer_factory(pipeline("fallback", extra="")).render(scene, 64, 64)
     s = frame.stats["lights"]
     assert s["every_tile"] == 2 and s["rasterized"] == 1 and s["mode"] == "fallback"
-    r = renderer_factory(pipeline_from_text(
-        "passes: [geometry, {light_culling: {mode: fallback, report_accuracy: true}}, composite]"))
+    r = renderer_factory(
+        pipeline_from_text("passes: [geometry, {light_culling: {mode: fallback, report_accuracy: true}}, composite]")
+    )
     s = r.render(scene, 64, 64).stats["lights"]
     assert s["grid_check"]["missing"] == 0 and s["grid_check"]["exact_pairs"] > 0
     bits = r.pass_named("light_culling").grid_bits()
@@ -153,24 +176,57 @@ def test_grid_check_in_stats_and_every_tile_lights(renderer_factory):
 def lit_scene(n_lights: int = 120, seed: int = 3) -> Scene:
     """Opaque pbr wall and boxes, transparent pbr panes, n point/spot/directional lights."""
     rng = np.random.default_rng(seed)
-    nodes = [Node("wall", Transform((0, 0, -1.5)), unit_quad(8, 8),
-                  MaterialInstance("pbr", {"albedo": [0.7, 0.7, 0.7], "roughness": 0.6}))]
+    nodes = [
+        Node(
+            "wall",
+            Transform((0, 0, -1.5)),
+            unit_quad(8, 8),
+            MaterialInstance("pbr", {"albedo": [0.7, 0.7, 0.7], "roughness": 0.6}),
+        )
+    ]
     for k in range(4):
-        nodes.append(Node(f"pane{k}", Transform((rng.uniform(-1, 1), rng.uniform(-1, 1), -0.8 + 0.5 * k),
-                                                (rng.uniform(-30, 30), rng.uniform(-40, 40), 0)),
-                          unit_quad(1.8, 1.8), MaterialInstance("pbr", {
-                              "albedo": list(rng.uniform(0.2, 1, 3)), "roughness": 0.3,
-                              "metalness": float(k == 2), "alpha": 0.45})))
+        nodes.append(
+            Node(
+                f"pane{k}",
+                Transform(
+                    (rng.uniform(-1, 1), rng.uniform(-1, 1), -0.8 + 0.5 * k),
+                    (rng.uniform(-30, 30), rng.uniform(-40, 40), 0),
+                ),
+                unit_quad(1.8, 1.8),
+                MaterialInstance(
+                    "pbr",
+                    {
+                        "albedo": list(rng.uniform(0.2, 1, 3)),
+                        "roughness": 0.3,
+                        "metalness": float(k == 2),
+                        "alpha": 0.45,
+                    },
+                ),
+            )
+        )
     lights = [Light("directional", direction=(-0.2, -0.3, -1.0), color=(0.3, 0.3, 0.35), intensity=0.4)]
     for i in range(n_lights - 1):
         pos = (rng.uniform(-3, 3), rng.uniform(-3, 3), rng.uniform(-1.2, 2.0))
         d = rng.normal(size=3)
         d[2] = -abs(d[2]) - 0.5
-        lights.append(Light("spot" if i % 3 == 0 else "point", pos, tuple(d / np.linalg.norm(d)),
-                            tuple(rng.uniform(0.2, 1, 3)), float(rng.uniform(0.3, 1.0)), float(rng.uniform(0.8, 2.0)),
-                            inner_angle_deg=10.0, outer_angle_deg=float(rng.uniform(20, 60))))
-    return Scene(camera=Camera(position=(0, 0, 5), target=(0, 0, 0), fov_y=50, near=0.1, far=50),
-                 background=(0.02, 0.02, 0.03), nodes=nodes, lights=lights)
+        lights.append(
+            Light(
+                "spot" if i % 3 == 0 else "point",
+                pos,
+                tuple(d / np.linalg.norm(d)),
+                tuple(rng.uniform(0.2, 1, 3)),
+                float(rng.uniform(0.3, 1.0)),
+                float(rng.uniform(0.8, 2.0)),
+                inner_angle_deg=10.0,
+                outer_angle_deg=float(rng.uniform(20, 60)),
+            )
+        )
+    return Scene(
+        camera=Camera(position=(0, 0, 5), target=(0, 0, 0), fov_y=50, near=0.1, far=50),
+        background=(0.02, 0.02, 0.03),
+        nodes=nodes,
+        lights=lights,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -190,10 +246,12 @@ def test_images_agree_with_culling_off(renderer_factory, gl_context, culling_off
     assert on.stats["fragments"]["stored"] > 0
     lin = np.abs(np.clip(on.linear, 0, 1) - np.clip(off.linear, 0, 1))
     img = np.abs(on.image.astype(int) - off.image.astype(int))
-    print(f"{mode} vs off: max linear diff {lin.max() * 255:.4f}/255, max 8-bit diff {img.max()}, "
-          f"mean {off.linear.mean():.3f}, clipped {(off.linear > 1).mean():.3f}")
+    print(
+        f"{mode} vs off: max linear diff {lin.max() * 255:.4f}/255, max 8-bit diff {img.max()}, "
+        f"mean {off.linear.mean():.3f}, clipped {(off.linear > 1).mean():.3f}"
+    )
     assert lin.max() <= 1.0 / 255 and img.max() <= 1
-    assert 0.05 < off.linear.mean() < 0.9   # lit, not black or blown out
+    assert 0.05 < off.linear.mean() < 0.9  # lit, not black or blown out
 
 
 def test_tile_bits_auto_follows_the_layer_count(renderer_factory):
@@ -221,13 +279,16 @@ def test_layers_grow_only_when_needed(renderer_factory):
     lc = r.pass_named("light_culling")
     scene = lit_scene(n_lights=10)
     r.render(scene, 48, 48)
-    assert lc.layers_allocated == 1 and lc.template_vars() == {"light_grid": True, "max_light_layers": 1,
-                                                                 "tile_bits_cached": False}
+    assert lc.layers_allocated == 1 and lc.template_vars() == {
+        "light_grid": True,
+        "max_light_layers": 1,
+        "tile_bits_cached": False,
+    }
     s = r.render(lit_scene(n_lights=70), 48, 48).stats["lights"]
     assert (s["layers"], s["layers_allocated"]) == (math.ceil(s["shaded"] / 32), 4)
     r.render(scene, 48, 48)
-    assert lc.layers_allocated == 4          # kept, not shrunk
-    r.render(scene, 80, 48)                  # a new grid size starts small again
+    assert lc.layers_allocated == 4  # kept, not shrunk
+    r.render(scene, 80, 48)  # a new grid size starts small again
     assert lc.layers_allocated == 1
 
 
@@ -245,8 +306,13 @@ def test_mode_auto_is_default_and_resolves(renderer_factory, gl_context):
 
     assert load_pipeline("default").pass_settings("light_culling")["mode"] == "auto"
     assert load_pipeline("exact").pass_settings("light_culling")["mode"] == "off"
-    assert pipeline_from_text("passes: [geometry, light_culling, composite]").pass_settings("light_culling") == \
-        {"mode": "auto", "tile_size": 16, "max_lights": 1024, "tile_bits": "auto", "report_accuracy": False}
+    assert pipeline_from_text("passes: [geometry, light_culling, composite]").pass_settings("light_culling") == {
+        "mode": "auto",
+        "tile_size": 16,
+        "max_lights": 1024,
+        "tile_bits": "auto",
+        "report_accuracy": False,
+    }
     lc = renderer_factory("default").pass_named("light_culling")
     has = detect_capabilities(gl_context).conservative_raster
     assert lc.mode == ("conservative" if has else "fallback")
@@ -298,10 +364,10 @@ def test_many_lights_scene_renders(renderer_factory):
 def test_debug_light_count_matches_grid(renderer_factory):
     r = renderer_factory(pipeline("fallback", tile=8, extra="  - debug_light_count: {max: 24, legend: false}\n"))
     frame = r.render(lit_scene(), 64, 64)
-    counts = r.pass_named("light_culling").grid_bits().sum(axis=0)        # (tiles down, across), row 0 bottom
-    img = frame.image[::-1].astype(float) / 255.0                          # row 0 bottom like the grid
+    counts = r.pass_named("light_culling").grid_bits().sum(axis=0)  # (tiles down, across), row 0 bottom
+    img = frame.image[::-1].astype(float) / 255.0  # row 0 bottom like the grid
     want = np.array([[heat_color(c, 24) for c in row] for row in counts])
-    got = img[4::8, 4::8]                                                  # one pixel per tile
+    got = img[4::8, 4::8]  # one pixel per tile
     assert np.abs(got - want).max() <= 1.0 / 255 + 1e-6
     assert frame.stats["debug_views"]["debug_light_count"]["tile_max"] == counts.max()
     assert len(np.unique(counts)) > 3
@@ -328,10 +394,10 @@ def test_debug_depth_complexity_counts_layers_with_legend(renderer_factory):
     assert np.abs(img[44:52, 44:52] - heat_color(5, 8)).max() <= 1.0 / 255 + 1e-6
     assert np.abs(img[30, 30] - heat_color(2, 8)).max() <= 1.0 / 255 + 1e-6
     assert np.abs(img[2, 2] - heat_color(0, 8)).max() <= 1.0 / 255 + 1e-6
-    legend = frame.image[96 - legend_rows(96):]
-    assert (legend == 255).all(axis=-1).sum() > 20                        # white tick marks and digits
+    legend = frame.image[96 - legend_rows(96) :]
+    assert (legend == 255).all(axis=-1).sum() > 20  # white tick marks and digits
     bar = legend.reshape(-1, 3)
-    assert any(np.abs(bar.astype(float) / 255 - heat_color(8, 8)).max(axis=1) <= 1.5 / 255)   # top of the bar
+    assert any(np.abs(bar.astype(float) / 255 - heat_color(8, 8)).max(axis=1) <= 1.5 / 255)  # top of the bar
     assert frame.stats["debug_views"]["debug_depth_complexity"]["supported"]
 
 
@@ -340,8 +406,9 @@ def test_debug_depth_complexity_other_list_methods(renderer_factory, method):
     from guaca_py import UnsupportedMethodError
 
     try:
-        r = renderer_factory(pipeline("off", extra="  - debug_depth_complexity: {max: 8, legend: false}\n"),
-                             method=method)
+        r = renderer_factory(
+            pipeline("off", extra="  - debug_depth_complexity: {max: 8, legend: false}\n"), method=method
+        )
     except UnsupportedMethodError as exc:
         pytest.skip(str(exc))
     img = r.render(_complexity_scene(), 64, 64).image.astype(float) / 255
@@ -350,8 +417,7 @@ def test_debug_depth_complexity_other_list_methods(renderer_factory, method):
 
 
 def test_debug_depth_complexity_unsupported_method_says_why(renderer_factory):
-    r = renderer_factory(pipeline("fallback", extra="  - debug_depth_complexity: {max: 8}\n"),
-                         method="unsorted_blend")
+    r = renderer_factory(pipeline("fallback", extra="  - debug_depth_complexity: {max: 8}\n"), method="unsorted_blend")
     frame = r.render(simple_scene([quad_node("q", 0, (1, 0, 0), 0.5)]), 32, 32)
     info = frame.stats["debug_views"]["debug_depth_complexity"]
     assert not info["supported"] and "unsorted_blend" in info["reason"]
@@ -361,9 +427,26 @@ def test_debug_depth_complexity_unsupported_method_says_why(renderer_factory):
 # ----------------------------------------------------------------------------- benchmark script
 def test_benchmark_script_runs_tiny(tmp_path):
     out = tmp_path / "bench"
-    proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "light_culling.py"), str(out), "--size", "64",
-                           "--lights", "1", "8", "--frames", "1", "--warmup", "0"],
-                          capture_output=True, text=True, timeout=120, cwd=ROOT)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            str(ROOT / "benchmarks" / "light_culling.py"),
+            str(out),
+            "--size",
+            "64",
+            "--lights",
+            "1",
+            "8",
+            "--frames",
+            "1",
+            "--warmup",
+            "0",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=ROOT,
+    )
     assert proc.returncode == 0, proc.stderr
     data = json.loads((out / "light_culling.json").read_text())
     assert [r["lights"] for r in data["results"]] == [1, 8]

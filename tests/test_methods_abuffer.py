@@ -1,5 +1,6 @@
 """The other exact one-pass A-buffer methods against the float64 reference: two merged lists,
 critical section (spin lock on devices without interlock), post-sort (fixed array) and post-merge16."""
+
 from __future__ import annotations
 
 import colorsys
@@ -7,7 +8,6 @@ import dataclasses
 
 import numpy as np
 import pytest
-
 from conftest import quad_node, simple_scene
 from reference import ReferenceCache, compare, interpenetrating_scene, layered_quads_scene
 
@@ -23,8 +23,10 @@ def reference_of(key, scene, w=SIZE, h=SIZE):
 
 def deep_scene(n, alpha, order="shuffled", seed=5, size=10.0):
     """n screen-covering planes between z=2 and z=-3: every pixel has depth complexity n."""
-    nodes = [quad_node(f"p{i:02d}", 2.0 - 5.0 * i / (n - 1), colorsys.hsv_to_rgb(i / n, 0.8, 0.95), alpha, size=size)
-             for i in range(n)]
+    nodes = [
+        quad_node(f"p{i:02d}", 2.0 - 5.0 * i / (n - 1), colorsys.hsv_to_rgb(i / n, 0.8, 0.95), alpha, size=size)
+        for i in range(n)
+    ]
     if order == "back_to_front":
         nodes = nodes[::-1]
     elif order == "shuffled":
@@ -83,8 +85,9 @@ def test_post_sort_truncates_to_the_nearest(renderers):
     # 12 layers everywhere, an array of 4: exactly 8 fragments per pixel are truncated, the 4 nearest
     # are kept whatever the submission order, so the image is the reference of the 4 nearest planes
     scene = deep_scene(12, 0.35, order="shuffled", seed=9)
-    nearest = simple_scene(sorted(scene.nodes, key=lambda n: -n.transform.translation[2])[:4],
-                           background=scene.background)
+    nearest = simple_scene(
+        sorted(scene.nodes, key=lambda n: -n.transform.translation[2])[:4], background=scene.background
+    )
     ref, mask, _ = reference_of("nearest4", nearest, 64, 64)
     frame = renderers("post_sort", max_fragments=4).render(scene, 64, 64)
     fr = frame.stats["fragments"]
@@ -115,8 +118,9 @@ def test_exact_with_coplanar_groups(renderers, method):
     # 7 depths x 3 coplanar planes, shuffled: 21 fragments with equal-depth runs, one of them across
     # post_merge16's round boundary (16); equal depths blend in draw order, as in the reference
     rng = np.random.default_rng(4)
-    nodes = [quad_node(f"g{i}", 1.5 - 0.6 * (i // 3), tuple(rng.uniform(0.1, 1.0, 3)), 0.1, size=12.0)
-             for i in range(21)]
+    nodes = [
+        quad_node(f"g{i}", 1.5 - 0.6 * (i // 3), tuple(rng.uniform(0.1, 1.0, 3)), 0.1, size=12.0) for i in range(21)
+    ]
     scene = simple_scene([nodes[i] for i in rng.permutation(21)], background=(0.05, 0.08, 0.12))
     ref, mask, layers = reference_of("coplanar21", scene, 64, 64)
     assert layers.min() == 21
@@ -152,7 +156,7 @@ def test_merge2_uses_both_lists(renderers):
     assert frame.stats["fragments"]["stored"] == 12 * 64 * 64
     links = np.frombuffer(r.method._links.read(), np.uint32 if r.method.link_bytes == 4 else np.uint64)
     p, cap = 64 * 64, r.method.capacity
-    first, second = links[:p], links[p + cap:2 * p + cap]
+    first, second = links[:p], links[p + cap : 2 * p + cap]
     assert (first != 0).all() and (second != 0).all()  # every pixel fills both lists
 
 
@@ -188,8 +192,9 @@ def test_spin_lock_gives_up_counted_when_held(renderer_factory):
     fr = frame.stats["fragments"]
     assert fr["stored"] == 0 and fr["lock_abandoned"] > 16 * 64, fr
     assert any("lock" in w for w in frame.stats["warnings"])
-    opaque_only = simple_scene([n for n in scene.nodes if n.material.uniforms["alpha"] >= 1.0],
-                               background=scene.background)
+    opaque_only = simple_scene(
+        [n for n in scene.nodes if n.material.uniforms["alpha"] >= 1.0], background=scene.background
+    )
     ref, mask, _ = reference_of("opaque_only", opaque_only, 64, 64)
     assert compare(frame.image, ref, mask)["max_abs_255"] <= 2.0
 
@@ -202,16 +207,26 @@ def test_interlock_variant_generates_the_critical_section(renderer_factory):
     caps = dataclasses.replace(r.caps, fragment_interlock=True)
     m = method_class("presort_cs_et")(dict(r.method.settings, lock="auto", max_spin=64), caps)
     assert m.lock == "interlock" and m.extra_slots == 0 and "fragment_shader_interlock" in m.extensions()
-    src = r.shaders.render("geometry/triangle_mesh.frag.j2", transparent=True, material_uniforms="",
-                           visibility_methods="", visibility_calls=[], method_extensions=m.extensions(),
-                           method_fragment_template=m.fragment_template(), **m.template_vars())
+    src = r.shaders.render(
+        "geometry/triangle_mesh.frag.j2",
+        transparent=True,
+        material_uniforms="",
+        visibility_methods="",
+        visibility_calls=[],
+        method_extensions=m.extensions(),
+        method_fragment_template=m.fragment_template(),
+        **m.template_vars(),
+    )
     assert "layout(pixel_interlock_ordered) in;" in src and "atomicCompSwap" not in src
-    body = src[src.index("void main()"):]
-    assert body.index("beginInvocationInterlockARB();") < body.index("submit_fragment();") \
+    body = src[src.index("void main()") :]
+    assert (
+        body.index("beginInvocationInterlockARB();")
+        < body.index("submit_fragment();")
         < body.index("endInvocationInterlockARB();")
+    )
     # helper invocations leave before any insertion or lock loop: their atomics return undefined
     # values, and a spin loop would run to max_spin on them (seen on NVIDIA: ~80x slower frames)
-    submit = src[src.index("void gua_submit_transparent()"):]
+    submit = src[src.index("void gua_submit_transparent()") :]
     assert submit.index("if (gl_HelperInvocation) return;") < submit.index("gua_insert(")
 
 

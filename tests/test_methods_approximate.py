@@ -1,4 +1,5 @@
 """Approximate methods measured against the float64 reference, with each method's exact special case asserted."""
+
 from __future__ import annotations
 
 import json
@@ -6,12 +7,12 @@ import math
 
 import numpy as np
 import pytest
-
+import reference
 from conftest import quad_node, simple_scene
+from reference import compare, interpenetrating_scene, layered_quads_scene
+
 from guaca_py.errors import ConfigError
 from guaca_py.scene.graph import Light, MaterialInstance
-import reference
-from reference import compare, interpenetrating_scene, layered_quads_scene
 
 SIZE = 96
 EXACT_255 = 2.0
@@ -52,27 +53,46 @@ def measurements(renderer_factory, references):
     out = {}
     for label, mid, settings in CONFIGS:
         r = renderer_factory("exact", method=mid, method_overrides=settings)
-        for name, (scene, ref, mask, layers) in references.items():
+        for name, (scene, ref, mask, _layers) in references.items():
             frame = r.render(scene, SIZE, SIZE)
             err = compare(frame.image, ref, mask)
-            out[(label, name)] = {"rmse_255": err["rmse_255"], "max_255": err["max_abs_255"],
-                                  "stats": json.loads(json.dumps(frame.stats))}
+            out[(label, name)] = {
+                "rmse_255": err["rmse_255"],
+                "max_255": err["max_abs_255"],
+                "stats": json.loads(json.dumps(frame.stats)),
+            }
     return out
 
 
 def test_error_table_written_and_finite(measurements, references, tmp_path_factory, capsys):
     path = tmp_path_factory.mktemp("approx") / "approximate_errors.json"
-    rows = [{"config": label, "scene": name, "rmse_255": m["rmse_255"], "max_255": m["max_255"],
-             "fragments": m["stats"]["fragments"], "memory": m["stats"]["memory"],
-             "geometry_passes": m["stats"]["geometry_passes"]} for (label, name), m in measurements.items()]
+    rows = [
+        {
+            "config": label,
+            "scene": name,
+            "rmse_255": m["rmse_255"],
+            "max_255": m["max_255"],
+            "fragments": m["stats"]["fragments"],
+            "memory": m["stats"]["memory"],
+            "geometry_passes": m["stats"]["geometry_passes"],
+        }
+        for (label, name), m in measurements.items()
+    ]
     path.write_text(json.dumps({"size": SIZE, "unit": "1/255, non-edge pixels", "rows": rows}, indent=2))
     assert json.loads(path.read_text())["rows"]
     names = list(SCENES)
-    lines = [f"approximate methods vs float64 reference, {SIZE}x{SIZE}, RMSE / max in 1/255 ({path})",
-             f"{'config':<28}" + "".join(f"{n:>20}" for n in names)]
+    lines = [
+        f"approximate methods vs float64 reference, {SIZE}x{SIZE}, RMSE / max in 1/255 ({path})",
+        f"{'config':<28}" + "".join(f"{n:>20}" for n in names),
+    ]
     for label, _, _ in CONFIGS:
-        lines.append(f"{label:<28}" + "".join(
-            f"{measurements[(label, n)]['rmse_255']:>11.2f} /{measurements[(label, n)]['max_255']:>6.1f}" for n in names))
+        lines.append(
+            f"{label:<28}"
+            + "".join(
+                f"{measurements[(label, n)]['rmse_255']:>11.2f} /{measurements[(label, n)]['max_255']:>6.1f}"
+                for n in names
+            )
+        )
     with capsys.disabled():
         print("\n" + "\n".join(lines))
     for row in rows:
@@ -112,8 +132,10 @@ def test_kbuffer_exact_when_k_covers_depth_complexity(measurements, references):
         assert m["max_255"] > 10, (label, m)
     assert measurements[("kbuffer k=2 merge", "shuffled")]["stats"]["fragments"]["merged"] > 0
     # dropping loses the far layers entirely; merging keeps their contribution approximately
-    assert (measurements[("kbuffer k=2 merge", "shuffled")]["rmse_255"]
-            < measurements[("kbuffer k=2 drop", "shuffled")]["rmse_255"])
+    assert (
+        measurements[("kbuffer k=2 merge", "shuffled")]["rmse_255"]
+        < measurements[("kbuffer k=2 drop", "shuffled")]["rmse_255"]
+    )
     # memory is bounded by k, whatever the depth complexity
     mem = measurements[("kbuffer k=2 drop", "shuffled")]["stats"]["memory"]
     assert mem["kbuffer_slots"] == SIZE * SIZE * 2 * mem["kbuffer_node_bytes"]
@@ -122,21 +144,29 @@ def test_kbuffer_exact_when_k_covers_depth_complexity(measurements, references):
 
 def test_weighted_blended_measured_inexact_on_layers(measurements):
     # order independent by construction: one image for every submission order, not the exact one
-    imgs = [measurements[("weighted_blended eq7", o)]["rmse_255"] for o in ("front_to_back", "back_to_front", "shuffled")]
+    imgs = [
+        measurements[("weighted_blended eq7", o)]["rmse_255"] for o in ("front_to_back", "back_to_front", "shuffled")
+    ]
     assert max(imgs) - min(imgs) < 0.05 and min(imgs) > 1.0
 
 
 @pytest.mark.parametrize("settings", [{}, {"weight": "eq10", "accum_format": "rgba16f"}, {"weight": "eq8"}])
 def test_weighted_blended_single_layer_and_equal_colors_exact(renderer_factory, settings):
     r = renderer_factory("exact", method="weighted_blended", method_overrides=settings)
-    single = simple_scene([quad_node("op", -1.0, (0.9, 0.8, 0.2), 1.0, size=1.5, xy=(0.4, 0.0)),
-                           quad_node("t", 0.5, (0.2, 0.5, 0.9), 0.45, size=2.5)])
+    single = simple_scene(
+        [
+            quad_node("op", -1.0, (0.9, 0.8, 0.2), 1.0, size=1.5, xy=(0.4, 0.0)),
+            quad_node("t", 0.5, (0.2, 0.5, 0.9), 0.45, size=2.5),
+        ]
+    )
     ref, mask, _ = reference_of(single, 64, 64)
     assert compare(r.render(single, 64, 64).image, ref, mask)["max_abs_255"] <= EXACT_255
     # equal colors: the weighted average color is that color and the coverage is exact
     same = (0.7, 0.3, 0.5)
-    nodes = [quad_node(f"q{i}", 1.5 - 0.6 * i, same, a, size=s, xy=(0.2 * i - 0.4, 0.1 * i))
-             for i, (a, s) in enumerate([(0.3, 2.6), (0.55, 1.8), (0.2, 3.0), (0.7, 1.2), (0.4, 2.2)])]
+    nodes = [
+        quad_node(f"q{i}", 1.5 - 0.6 * i, same, a, size=s, xy=(0.2 * i - 0.4, 0.1 * i))
+        for i, (a, s) in enumerate([(0.3, 2.6), (0.55, 1.8), (0.2, 3.0), (0.7, 1.2), (0.4, 2.2)])
+    ]
     nodes.insert(2, quad_node("op", 0.0, (0.1, 0.9, 0.2), 1.0, size=1.0, xy=(0.5, -0.5)))
     scene = simple_scene(nodes)
     ref, mask, layers = reference_of(scene, 64, 64)
@@ -148,8 +178,16 @@ def test_stochastic_error_falls_with_samples(renderer_factory, references):
     scene, ref, mask, _ = references["shuffled"]
     rmse = {}
     for s in (4, 16):
-        runs = [compare(renderer_factory("exact", method="stochastic", method_overrides={"samples": s, "seed": seed})
-                        .render(scene, SIZE, SIZE).image, ref, mask)["rmse_255"] for seed in range(3)]
+        runs = [
+            compare(
+                renderer_factory("exact", method="stochastic", method_overrides={"samples": s, "seed": seed})
+                .render(scene, SIZE, SIZE)
+                .image,
+                ref,
+                mask,
+            )["rmse_255"]
+            for seed in range(3)
+        ]
         rmse[s] = float(np.mean(runs))
     # Monte-Carlo noise ~ 1/sqrt(S): four times the samples should about halve the error
     assert rmse[16] < 0.75 * rmse[4], rmse
@@ -165,7 +203,9 @@ def test_stochastic_reproducible_per_seed(renderer_factory, references):
 
 def test_stochastic_alpha_correction_helps(measurements):
     for name in ("shuffled", "interpenetrating"):
-        assert measurements[("stochastic S=8 raw", name)]["rmse_255"] > measurements[("stochastic S=16", name)]["rmse_255"]
+        assert (
+            measurements[("stochastic S=8 raw", name)]["rmse_255"] > measurements[("stochastic S=16", name)]["rmse_255"]
+        )
 
 
 @pytest.mark.parametrize("label", [c[0] for c in CONFIGS])
@@ -209,16 +249,28 @@ def test_lit_fragments_shaded_like_the_composite(renderer_factory):
     scene.lights = [Light(type="point", position=(0.5, 1.0, 2.5), color=(1.0, 0.9, 0.8), intensity=6.0, radius=12.0)]
     exact = renderer_factory("exact", method="presort_lf").render(scene, 64, 64).linear
     assert exact.std() > 0.02  # lighting varies over the image
-    for mid, settings in [("unsorted_blend", {}), ("object_sorted_blend", {}), ("weighted_blended", {}),
-                          ("stochastic", {"samples": 8}), ("kbuffer", {"k": 4})]:
+    for mid, settings in [
+        ("unsorted_blend", {}),
+        ("object_sorted_blend", {}),
+        ("weighted_blended", {}),
+        ("stochastic", {"samples": 8}),
+        ("kbuffer", {"k": 4}),
+    ]:
         lin = renderer_factory("exact", method=mid, method_overrides=settings).render(scene, 64, 64).linear
         err = np.abs(np.clip(lin, 0, 1) - np.clip(exact, 0, 1)) * 255.0
         assert np.percentile(err, 99) <= EXACT_255, (mid, float(err.max()))
 
 
-@pytest.mark.parametrize("mid,settings", [("stochastic", {"samples": 33}), ("kbuffer", {"overflow": "keep"}),
-                                          ("kbuffer", {"k": 0}), ("weighted_blended", {"weight": "eq11"}),
-                                          ("weighted_blended", {"accum_format": "rgba8"})])
+@pytest.mark.parametrize(
+    "mid,settings",
+    [
+        ("stochastic", {"samples": 33}),
+        ("kbuffer", {"overflow": "keep"}),
+        ("kbuffer", {"k": 0}),
+        ("weighted_blended", {"weight": "eq11"}),
+        ("weighted_blended", {"accum_format": "rgba8"}),
+    ],
+)
 def test_bad_settings_rejected(renderer_factory, mid, settings):
     with pytest.raises(ConfigError):
         renderer_factory("exact", method=mid, method_overrides=settings)

@@ -1,11 +1,11 @@
 """Counted-storage methods (dfb, sbuffer, paged_ll) against the float64 reference, plus the GPU scan."""
+
 from __future__ import annotations
 
 import functools
 
 import numpy as np
 import pytest
-
 from conftest import quad_node, simple_scene
 from reference import compare, edge_mask, interpenetrating_scene, layered_quads_scene, render_reference, scene_triangles
 
@@ -14,7 +14,7 @@ SIZE = 96
 NODE_BYTES = 32
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _layered(order: str):
     scene = layered_quads_scene(n_layers=18, order=order, seed=5)
     return scene, _reference(scene, SIZE)
@@ -29,8 +29,10 @@ def _reference(scene, size):
 def _deep_scene(n=72):
     """n full-screen quads of low alpha at distinct depths, submitted shuffled: depth complexity n."""
     rng = np.random.default_rng(11)
-    nodes = [quad_node(f"q{i}", 2.0 - 4.0 * i / n, tuple(rng.uniform(0.1, 1.0, 3)), float(rng.uniform(0.04, 0.12)),
-                       size=8.0) for i in range(n)]
+    nodes = [
+        quad_node(f"q{i}", 2.0 - 4.0 * i / n, tuple(rng.uniform(0.1, 1.0, 3)), float(rng.uniform(0.04, 0.12)), size=8.0)
+        for i in range(n)
+    ]
     return simple_scene([nodes[i] for i in rng.permutation(n)])
 
 
@@ -174,7 +176,8 @@ def test_paged_ll_grows_its_pool_and_reports_pages(renderer_factory):
     again = r.render(scene, SIZE, SIZE)
     assert again.stats["regrown"] == 0
     assert again.stats["memory"]["counted_pages"] <= 2 * (again.stats["fragments"]["pages_used"] * 1.15 + 1024) * (
-        3 * NODE_BYTES + 4)
+        3 * NODE_BYTES + 4
+    )
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -195,8 +198,9 @@ def test_tiny_budget_reports_overflow_and_stays_valid(renderer_factory, method):
 @pytest.mark.parametrize("method", METHODS)
 def test_transparency_hidden_behind_opaque(renderer_factory, method):
     # every transparent fragment fails the depth test: nothing counted, nothing stored
-    scene = simple_scene([quad_node("wall", 0.5, (0.2, 0.6, 0.3), 1.0, size=8.0),
-                          quad_node("glass", -1.0, (1, 0, 0), 0.5)])
+    scene = simple_scene(
+        [quad_node("wall", 0.5, (0.2, 0.6, 0.3), 1.0, size=8.0), quad_node("glass", -1.0, (1, 0, 0), 0.5)]
+    )
     ref, mask, _ = _reference(scene, 32)
     frame = renderer_factory("exact", method=method).render(scene, 32, 32)
     assert frame.stats["fragments"]["stored"] == 0

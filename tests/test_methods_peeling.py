@@ -1,18 +1,23 @@
 """The peeling family against the float64 reference: depth, dual, multi-layer, hybrid and coherent
 layer peeling; pass counts on sorted input, the pass cap, the 8-bit stencil overflow, the node pool."""
+
 from __future__ import annotations
 
 import colorsys
 
 import numpy as np
 import pytest
-
 from conftest import quad_node, simple_scene
 from reference import ReferenceCache, compare, interpenetrating_scene, layered_quads_scene
 
 SIZE = 64
-METHODS = ["depth_peeling", "dual_depth_peeling", "multilayer_depth_peeling", "hybrid_layer_peeling",
-           "coherent_layer_peeling"]
+METHODS = [
+    "depth_peeling",
+    "dual_depth_peeling",
+    "multilayer_depth_peeling",
+    "hybrid_layer_peeling",
+    "coherent_layer_peeling",
+]
 _REFS = ReferenceCache()
 
 
@@ -23,8 +28,10 @@ def reference_of(key, scene, w=SIZE, h=SIZE):
 
 def planes(n, alpha, order, size=12.0, z0=2.0, z1=-3.0):
     """n screen-covering planes from z0 (front) to z1, distinct colours, in the given submission order."""
-    nodes = [quad_node(f"p{i:03d}", z0 + (z1 - z0) * i / (n - 1), colorsys.hsv_to_rgb(i / n, 0.8, 0.95), alpha,
-                       size=size) for i in range(n)]
+    nodes = [
+        quad_node(f"p{i:03d}", z0 + (z1 - z0) * i / (n - 1), colorsys.hsv_to_rgb(i / n, 0.8, 0.95), alpha, size=size)
+        for i in range(n)
+    ]
     if order == "back_to_front":
         nodes = nodes[::-1]
     elif order == "shuffled":
@@ -88,8 +95,10 @@ def test_coplanar_ties_resolve_in_submission_order(renderers, method):
     # three identical coplanar planes at one depth among others: equal keys break ties by
     # (draw, primitive), like the reference's stable sort, so none is lost or doubled
     nodes = [quad_node("back", -1.0, (0.2, 0.3, 0.9), 0.5, size=12.0)]
-    nodes += [quad_node(f"tie{i}", 0.0, c, 0.4, size=12.0)
-              for i, c in enumerate([(0.9, 0.1, 0.1), (0.1, 0.9, 0.1), (0.9, 0.9, 0.1)])]
+    nodes += [
+        quad_node(f"tie{i}", 0.0, c, 0.4, size=12.0)
+        for i, c in enumerate([(0.9, 0.1, 0.1), (0.1, 0.9, 0.1), (0.9, 0.9, 0.1)])
+    ]
     nodes.append(quad_node("front", 1.0, (0.9, 0.5, 0.9), 0.3, size=12.0))
     scene = simple_scene([nodes[i] for i in (3, 0, 1, 4, 2)], background=(0.05, 0.08, 0.12))
     ref, mask, layers = reference_of(("ties",), scene)
@@ -104,14 +113,21 @@ def test_sorted_input_needs_fewer_passes(renderers):
     passes = {m: renderers(m).render(scene, SIZE, SIZE).stats["geometry_passes"] for m in METHODS}
     depth = passes["depth_peeling"]
     assert depth >= 12, passes
-    assert passes["coherent_layer_peeling"] == 5 < depth, passes   # one iteration of five passes
-    assert passes["hybrid_layer_peeling"] == 1 < depth, passes     # every draw is in the sorted chain
+    assert passes["coherent_layer_peeling"] == 5 < depth, passes  # one iteration of five passes
+    assert passes["hybrid_layer_peeling"] == 1 < depth, passes  # every draw is in the sorted chain
     assert max(passes["dual_depth_peeling"], passes["multilayer_depth_peeling"]) < depth, passes
 
 
-@pytest.mark.parametrize("method, expected", [("depth_peeling", 16), ("dual_depth_peeling", 8),
-                                              ("multilayer_depth_peeling", 4), ("coherent_layer_peeling", 5),
-                                              ("hybrid_layer_peeling", 1)])
+@pytest.mark.parametrize(
+    "method, expected",
+    [
+        ("depth_peeling", 16),
+        ("dual_depth_peeling", 8),
+        ("multilayer_depth_peeling", 4),
+        ("coherent_layer_peeling", 5),
+        ("hybrid_layer_peeling", 1),
+    ],
+)
 def test_pass_counts_on_sorted_planes(renderers, method, expected):
     # 16 planes over every pixel, front to back, nothing saturates: one layer per pass, two (both
     # ends), four (M = 4), one coherent iteration, one composite of the sorted chain. A pass that
@@ -141,8 +157,15 @@ def test_depth_peeling_pass_cap_reports_truncation(renderers):
     assert compare(frame.image, ref, mask)["max_abs_255"] > 10  # the missing layers show
 
 
-@pytest.mark.parametrize("method, cap", [("dual_depth_peeling", 2), ("multilayer_depth_peeling", 1),
-                                         ("coherent_layer_peeling", 7), ("hybrid_layer_peeling", 4)])
+@pytest.mark.parametrize(
+    "method, cap",
+    [
+        ("dual_depth_peeling", 2),
+        ("multilayer_depth_peeling", 1),
+        ("coherent_layer_peeling", 7),
+        ("hybrid_layer_peeling", 4),
+    ],
+)
 def test_other_caps_report_truncation(renderers, method, cap):
     frame = renderers(method, max_passes=cap).render(planes(12, 0.15, "back_to_front"), SIZE, SIZE)
     assert frame.stats["geometry_passes"] <= cap
@@ -225,11 +248,13 @@ def test_unsupported_without_ordering(renderer_factory, gl_context):
     missing = "interlock" if caps.framebuffer_fetch else "fetch"
     off = "fragment_interlock" if missing == "interlock" else "framebuffer_fetch"
     with pytest.raises(UnsupportedMethodError, match=f"ordering '{missing}'"):
-        renderer_factory("exact", method="coherent_layer_peeling", disable=(off,),
-                         method_overrides={"ordering": missing})
+        renderer_factory(
+            "exact", method="coherent_layer_peeling", disable=(off,), method_overrides={"ordering": missing}
+        )
     # multi-layer peeling only needs 32-bit atomics
-    r = renderer_factory("exact", method="multilayer_depth_peeling", disable=("framebuffer_fetch",
-                                                                              "fragment_interlock"))
+    r = renderer_factory(
+        "exact", method="multilayer_depth_peeling", disable=("framebuffer_fetch", "fragment_interlock")
+    )
     assert r.method.order is None
 
 

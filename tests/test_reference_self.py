@@ -1,10 +1,9 @@
 """Self-checks of the float64 CPU reference compositor against hand-computed answers."""
+
 from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from guaca_py.scene.graph import Camera, MaterialInstance, Node, Scene, Transform
 from reference import (
     camera_rays,
     compare,
@@ -19,6 +18,8 @@ from reference import (
     unlit,
 )
 
+from guaca_py.scene.graph import Camera, MaterialInstance, Node, Scene, Transform
+
 BG = (0.1, 0.2, 0.3)
 
 
@@ -29,8 +30,12 @@ def _cam(fov_y: float = 90.0) -> Camera:
 
 def _quad(name: str, center: tuple[float, float, float], half: float, color, alpha: float) -> Node:
     """An untilted square quad node facing the camera."""
-    return Node(name=name, transform=Transform(translation=center), mesh=quad_mesh(half, half, name),
-                material=unlit(color, alpha))
+    return Node(
+        name=name,
+        transform=Transform(translation=center),
+        mesh=quad_mesh(half, half, name),
+        material=unlit(color, alpha),
+    )
 
 
 def _render(scene: Scene, w: int, h: int) -> tuple[np.ndarray, np.ndarray]:
@@ -64,8 +69,8 @@ def test_full_screen_opaque_quad_gives_its_color() -> None:
 @pytest.mark.parametrize("reverse", [False, True])
 def test_two_transparent_quads_over_composite(reverse: bool) -> None:
     """Overlap pixel equals the analytic over-composite regardless of submission order."""
-    c1, a1 = np.array([1.0, 0.2, 0.1]), 0.4    # near
-    c2, a2 = np.array([0.1, 0.9, 0.3]), 0.6    # far
+    c1, a1 = np.array([1.0, 0.2, 0.1]), 0.4  # near
+    c2, a2 = np.array([0.1, 0.9, 0.3]), 0.6  # far
     nodes = [_quad("near", (0.3, 0.1, 1.0), 1.5, c1, a1), _quad("far", (-0.2, 0.0, -1.0), 2.0, c2, a2)]
     scene = Scene(camera=_cam(), background=BG, nodes=nodes[::-1] if reverse else nodes)
     img, layers = _render(scene, 32, 32)
@@ -107,7 +112,7 @@ def test_edge_mask_marks_projected_edge_only() -> None:
     tris = np.array([[[x0, -1.0, 0.0], [3.0, 0.0, 0.0], [x0, 1.0, 0.0]]])
     mask = edge_mask(tris, _cam(), 32, 32)
     assert mask[16, 20] and mask[14, 20]
-    assert not mask[16, 21] and not mask[16, 19]   # exactly 1 px away, radius 0.5
+    assert not mask[16, 21] and not mask[16, 19]  # exactly 1 px away, radius 0.5
     assert not mask[2, 2] and not mask[16, 22]
 
 
@@ -115,9 +120,9 @@ def test_edge_mask_clips_edges_at_near_plane() -> None:
     """An edge running behind the camera is clipped, not projected through the image centre."""
     # Row 23 of 32 has ndc_y = 1 - 23.5/16 = -0.46875; at depth 1 that is view y -0.46875.
     y = -0.46875
-    tris = np.array([[[0.5, y, 4.0], [0.5, y, 6.0], [-0.5, y, 4.0]]])   # middle vertex behind the eye
+    tris = np.array([[[0.5, y, 4.0], [0.5, y, 6.0], [-0.5, y, 4.0]]])  # middle vertex behind the eye
     mask = edge_mask(tris, _cam(), 32, 32)
-    assert mask[23, 16]                    # on the in-front horizontal edge
+    assert mask[23, 16]  # on the in-front horizontal edge
     # A naive divide by negative depth would send two edges through the image centre.
     assert not mask[15, 15] and not mask[16, 16]
 
@@ -131,7 +136,7 @@ def _local_quad_hits(scene: Scene, w: int, h: int, row: int, col: int) -> int:
         inv = np.linalg.inv(world)
         o = inv[:3, :3] @ eye + inv[:3, 3]
         dl = inv[:3, :3] @ d
-        t = -o[2] / dl[2]                  # local plane z = 0; world t == local t (affine)
+        t = -o[2] / dl[2]  # local plane z = 0; world t == local t (affine)
         p = o + t * dl
         half = node.mesh.positions.max(axis=0)
         if scene.camera.near <= t <= scene.camera.far and abs(p[0]) <= half[0] and abs(p[1]) <= half[1]:
@@ -151,7 +156,7 @@ def test_layer_counts_match_local_quad_intersection() -> None:
     pick = rng.choice(len(rows), size=60, replace=False)
     for r, c in zip(rows[pick], cols[pick]):
         assert layers[r, c] == _local_quad_hits(scene, w, h, r, c), (r, c)
-    assert layers.max() >= 8 and len(np.unique(layers)) >= 6   # counts really vary
+    assert layers.max() >= 8 and len(np.unique(layers)) >= 6  # counts really vary
 
 
 @pytest.mark.parametrize("order", ["back_to_front", "shuffled"])
@@ -180,10 +185,13 @@ def test_interpenetrating_scene_crosses_in_depth() -> None:
 
 def test_scene_triangles_applies_parent_transform_and_rejects_lit() -> None:
     """World positions compose parent transforms; non-unlit materials raise."""
-    child = Node(name="t", transform=Transform(translation=(1.0, 0.0, 0.0)),
-                 mesh=triangle_mesh((0, 0, 0), (1, 0, 0), (0, 1, 0)), material=unlit((1, 1, 1), 0.5))
-    parent = Node(name="p", transform=Transform(translation=(0.0, 2.0, 0.0), rotation_deg=(0, 0, 90)),
-                  children=[child])
+    child = Node(
+        name="t",
+        transform=Transform(translation=(1.0, 0.0, 0.0)),
+        mesh=triangle_mesh((0, 0, 0), (1, 0, 0), (0, 1, 0)),
+        material=unlit((1, 1, 1), 0.5),
+    )
+    parent = Node(name="p", transform=Transform(translation=(0.0, 2.0, 0.0), rotation_deg=(0, 0, 90)), children=[child])
     tris, rgb, alpha = scene_triangles(Scene(nodes=[parent]))
     # Rz(90) maps local (1,0,0)+(1,0,0) -> (0,2,0); plus parent translation (0,2,0).
     assert np.allclose(tris[0], [[0, 3, 0], [0, 4, 0], [-1, 3, 0]], atol=1e-12)
@@ -197,8 +205,8 @@ def test_compare_reports_error_in_255_units() -> None:
     """compare() ignores excluded pixels and reports the worst compared one."""
     ref = np.full((4, 4, 3), 0.5)
     gpu = np.full((4, 4, 3), 128, dtype=np.uint8)
-    gpu[0, 0] = 0        # excluded
-    gpu[2, 3, 1] = 131   # 3.5 off
+    gpu[0, 0] = 0  # excluded
+    gpu[2, 3, 1] = 131  # 3.5 off
     mask = np.zeros((4, 4), dtype=bool)
     mask[0, 0] = True
     res = compare(gpu, ref, mask)

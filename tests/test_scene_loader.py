@@ -1,4 +1,5 @@
 """Tests for primitives, mesh file loading, YAML scene loading and the built-in demo scene."""
+
 from __future__ import annotations
 
 import math
@@ -10,8 +11,7 @@ import pytest
 import trimesh
 
 from guaca_py.errors import ConfigError
-from guaca_py.scene import (PRIMITIVE_KINDS, demo_scene, load_mesh_file, load_scene,
-                            load_scene_text, make_primitive)
+from guaca_py.scene import PRIMITIVE_KINDS, demo_scene, load_mesh_file, load_scene, load_scene_text, make_primitive
 from guaca_py.scene.graph import Transform
 
 
@@ -56,15 +56,19 @@ def _check_mesh_invariants(mesh) -> None:
 
 # ---- primitives -----------------------------------------------------------------------------
 
-@pytest.mark.parametrize("kind, params, verts, tris", [
-    ("quad", {"size": [2, 3]}, 4, 2),
-    ("plane", {"size": [4, 2]}, 4, 2),
-    ("plane", {"size": [4, 2], "subdivisions": 5}, 36, 50),
-    ("box", {"size": [1, 2, 3]}, 24, 12),
-    ("sphere", {"radius": 2, "segments": 12, "rings": 6}, 7 * 13, 2 * 12 * 5),
-    ("cylinder", {"radius": 1, "height": 2, "segments": 10}, 22 + 22, 40),
-    ("cylinder", {"radius": 1, "height": 2, "segments": 10, "capped": False}, 22, 20),
-])
+
+@pytest.mark.parametrize(
+    "kind, params, verts, tris",
+    [
+        ("quad", {"size": [2, 3]}, 4, 2),
+        ("plane", {"size": [4, 2]}, 4, 2),
+        ("plane", {"size": [4, 2], "subdivisions": 5}, 36, 50),
+        ("box", {"size": [1, 2, 3]}, 24, 12),
+        ("sphere", {"radius": 2, "segments": 12, "rings": 6}, 7 * 13, 2 * 12 * 5),
+        ("cylinder", {"radius": 1, "height": 2, "segments": 10}, 22 + 22, 40),
+        ("cylinder", {"radius": 1, "height": 2, "segments": 10, "capped": False}, 22, 20),
+    ],
+)
 def test_primitive_counts_and_invariants(kind, params, verts, tris):
     mesh = make_primitive(kind, **params)
     assert mesh.positions.shape[0] == verts
@@ -89,11 +93,14 @@ def test_flat_primitives_face_the_documented_axis():
     np.testing.assert_allclose(hi, [3, 0, 1])
 
 
-@pytest.mark.parametrize("kind, params, volume, tol", [
-    ("box", {"size": [1, 2, 3]}, 6.0, 1e-5),
-    ("sphere", {"radius": 1.5, "segments": 64, "rings": 32}, 4 / 3 * math.pi * 1.5 ** 3, 0.02),
-    ("cylinder", {"radius": 0.5, "height": 3, "segments": 64}, math.pi * 0.25 * 3, 0.02),
-])
+@pytest.mark.parametrize(
+    "kind, params, volume, tol",
+    [
+        ("box", {"size": [1, 2, 3]}, 6.0, 1e-5),
+        ("sphere", {"radius": 1.5, "segments": 64, "rings": 32}, 4 / 3 * math.pi * 1.5**3, 0.02),
+        ("cylinder", {"radius": 0.5, "height": 3, "segments": 64}, math.pi * 0.25 * 3, 0.02),
+    ],
+)
 def test_closed_primitives_wind_outward(kind, params, volume, tol):
     mesh = make_primitive(kind, **params)
     assert _signed_volume(mesh) == pytest.approx(volume, rel=tol)
@@ -105,12 +112,18 @@ def test_closed_primitives_wind_outward(kind, params, volume, tol):
 def test_box_normals_are_flat_per_face_and_sphere_normals_radial():
     box = make_primitive("box", size=[2, 2, 2])
     for face in range(6):
-        n = box.normals[4 * face:4 * face + 4]
+        n = box.normals[4 * face : 4 * face + 4]
         assert np.all(n == n[0]) and sorted(np.abs(n[0])) == [0, 0, 1]
         # The face's vertices lie on the side its normal points to.
-        np.testing.assert_allclose(box.positions[4 * face:4 * face + 4] @ n[0], 1.0)
+        np.testing.assert_allclose(box.positions[4 * face : 4 * face + 4] @ n[0], 1.0)
     assert {tuple(box.normals[4 * f]) for f in range(6)} == {
-        (1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)}
+        (1, 0, 0),
+        (-1, 0, 0),
+        (0, 1, 0),
+        (0, -1, 0),
+        (0, 0, 1),
+        (0, 0, -1),
+    }
 
     sphere = make_primitive("sphere", radius=3, segments=16, rings=8)
     np.testing.assert_allclose(sphere.normals, sphere.positions / 3.0, atol=1e-6)
@@ -124,16 +137,19 @@ def test_unknown_primitive_lists_valid_kinds():
         assert kind in err.value.hint
 
 
-@pytest.mark.parametrize("kind, params, key", [
-    ("box", {"radius": 1}, "radius"),
-    ("sphere", {"radius": -1}, "radius"),
-    ("sphere", {"segments": 2}, "segments"),
-    ("sphere", {"rings": 4.5}, "rings"),
-    ("quad", {"size": [1, 2, 3]}, "size"),
-    ("box", {"size": [1, 0, 1]}, "size"),
-    ("cylinder", {"capped": 1}, "capped"),
-    ("plane", {"subdivisions": True}, "subdivisions"),
-])
+@pytest.mark.parametrize(
+    "kind, params, key",
+    [
+        ("box", {"radius": 1}, "radius"),
+        ("sphere", {"radius": -1}, "radius"),
+        ("sphere", {"segments": 2}, "segments"),
+        ("sphere", {"rings": 4.5}, "rings"),
+        ("quad", {"size": [1, 2, 3]}, "size"),
+        ("box", {"size": [1, 0, 1]}, "size"),
+        ("cylinder", {"capped": 1}, "capped"),
+        ("plane", {"subdivisions": True}, "subdivisions"),
+    ],
+)
 def test_bad_primitive_params(kind, params, key):
     with pytest.raises(ConfigError) as err:
         make_primitive(kind, **params)
@@ -148,8 +164,10 @@ def test_unknown_param_hint_lists_valid_params():
 
 # ---- transforms and the node tree ---------------------------------------------------------
 
+
 def test_transforms_and_children_give_expected_world_matrices():
-    scene = load_scene_text(_yaml("""
+    scene = load_scene_text(
+        _yaml("""
         nodes:
           - name: parent
             transform: {translation: [1, 0, 0], rotation_deg: [0, 90, 0]}
@@ -162,7 +180,9 @@ def test_transforms_and_children_give_expected_world_matrices():
                     transform: {translation: [0, 1, 0], rotation_deg: [90, 0, 0], scale: [1, 2, 3]}
           - name: sibling
             transform: {translation: [0, 5, 0]}
-    """), "inline.yaml")
+    """),
+        "inline.yaml",
+    )
     walked = list(scene.walk())
     assert [n.name for n, _ in walked] == ["parent", "child", "grandchild", "sibling"]
     world = {n.name: m for n, m in walked}
@@ -172,21 +192,26 @@ def test_transforms_and_children_give_expected_world_matrices():
     np.testing.assert_allclose(world["child"][:3, :3] @ [0, 0, 1], [2, 0, 0], atol=1e-12)
     # The grandchild's +Y offset is scaled by the child's uniform scale of 2.
     np.testing.assert_allclose(world["grandchild"][:3, 3], [2, 2, 0], atol=1e-12)
-    expected = (Transform((1, 0, 0), (0, 90, 0)).matrix() @ Transform((0, 0, 1), scale=(2, 2, 2)).matrix()
-                @ Transform((0, 1, 0), (90, 0, 0), (1, 2, 3)).matrix())
+    expected = (
+        Transform((1, 0, 0), (0, 90, 0)).matrix()
+        @ Transform((0, 0, 1), scale=(2, 2, 2)).matrix()
+        @ Transform((0, 1, 0), (90, 0, 0), (1, 2, 3)).matrix()
+    )
     np.testing.assert_allclose(world["grandchild"], expected, atol=1e-12)
     np.testing.assert_allclose(world["sibling"], Transform((0, 5, 0)).matrix())
-    assert scene.nodes[0].mesh is None                  # a group
+    assert scene.nodes[0].mesh is None  # a group
     assert scene.nodes[0].children[0].children[0].mesh.triangle_count == 12
 
 
 def test_defaults_and_unnamed_nodes():
-    scene = load_scene_text(_yaml("""
+    scene = load_scene_text(
+        _yaml("""
         lights: [{position: [1, 2, 3]}]
         nodes:
           - {mesh: {primitive: sphere}}
           - children: [{}]
-    """))
+    """)
+    )
     assert scene.background == (0.1, 0.1, 0.1) and scene.camera.fov_y == 60
     light = scene.lights[0]
     assert (light.type, light.intensity, light.radius) == ("point", 1.0, 10.0)
@@ -195,14 +220,16 @@ def test_defaults_and_unnamed_nodes():
 
 
 def test_lights_and_camera_are_parsed():
-    scene = load_scene_text(_yaml("""
+    scene = load_scene_text(
+        _yaml("""
         camera: {position: [0, 2, 8], target: [0, 1, 0], fov_y: 45, near: 0.5, far: 40}
         background: [0, 0, 0.2]
         lights:
           - {type: point, position: [2, 3, 2], color: [1, 0.5, 0], intensity: 20, radius: 7}
           - {type: spot, position: [0, 4, 0], direction: [0, -2, 0], inner_angle_deg: 10, outer_angle_deg: 20}
           - {type: directional, direction: [0, 0, -3], color: [0.2, 0.2, 0.3], intensity: 0.5}
-    """))
+    """)
+    )
     assert scene.camera.position == (0, 2, 8) and scene.camera.near == 0.5 and scene.camera.far == 40
     assert scene.background == (0, 0, 0.2)
     point, spot, sun = scene.lights
@@ -212,7 +239,8 @@ def test_lights_and_camera_are_parsed():
 
 
 def test_material_keeps_source_line_and_converts_uniforms():
-    scene = load_scene_text(_yaml("""
+    scene = load_scene_text(
+        _yaml("""
         nodes:
           - name: a
             mesh: {primitive: quad}
@@ -221,7 +249,9 @@ def test_material_keeps_source_line_and_converts_uniforms():
               uniforms: {albedo: [1, 0, 0], alpha: 1, double_sided: true, mode: fancy}
           - name: b
             material: unlit
-    """), "m.yaml")
+    """),
+        "m.yaml",
+    )
     mat = scene.nodes[0].material
     assert mat.description == "pbr"
     assert mat.uniforms == {"albedo": (1.0, 0.0, 0.0), "alpha": 1.0, "double_sided": True, "mode": "fancy"}
@@ -234,28 +264,32 @@ def test_material_keeps_source_line_and_converts_uniforms():
 
 # ---- paths -----------------------------------------------------------------------------------
 
+
 def test_relative_mesh_and_texture_paths_resolve_against_scene_dir(tmp_path, monkeypatch):
     (tmp_path / "models").mkdir()
     (tmp_path / "tex").mkdir()
     tri = trimesh.Trimesh(vertices=[[0, 0, 0], [2, 0, 0], [0, 3, 0]], faces=[[0, 1, 2]], process=False)
     tri.export(tmp_path / "models" / "tri.obj")
     (tmp_path / "tex" / "albedo.png").write_bytes(b"\x89PNG\r\n\x1a\n")
-    scene_path = _scene_file(tmp_path, """
+    scene_path = _scene_file(
+        tmp_path,
+        """
         nodes:
           - name: one
             mesh: {file: models/tri.obj}
             material: {description: pbr, uniforms: {albedo_map: tex/albedo.png}}
           - name: two
             mesh: {file: ./models/../models/tri.obj}
-    """)
+    """,
+    )
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
-    monkeypatch.chdir(elsewhere)                       # resolution must not depend on the cwd
+    monkeypatch.chdir(elsewhere)  # resolution must not depend on the cwd
     scene = load_scene(scene_path)
     mesh = scene.nodes[0].mesh
     assert mesh.triangle_count == 1
     np.testing.assert_allclose(mesh.bounds()[1], [2, 3, 0])
-    assert scene.nodes[1].mesh is mesh                  # same file is loaded once and shared
+    assert scene.nodes[1].mesh is mesh  # same file is loaded once and shared
     tex = scene.nodes[0].material.uniforms["albedo_map"]
     assert Path(tex).is_absolute() and Path(tex) == (tmp_path / "tex" / "albedo.png").resolve()
     assert scene.source == scene_path.resolve()
@@ -268,14 +302,17 @@ def test_load_scene_text_uses_base_dir(tmp_path):
 
 
 def test_missing_mesh_file_names_path_file_and_line(tmp_path):
-    scene_path = _scene_file(tmp_path, """
+    scene_path = _scene_file(
+        tmp_path,
+        """
         nodes:
           - name: ok
             mesh: {primitive: box}
           - name: lost
             mesh:
               file: models/nope.obj
-    """)
+    """,
+    )
     with pytest.raises(ConfigError) as err:
         load_scene(scene_path)
     e = err.value
@@ -285,10 +322,13 @@ def test_missing_mesh_file_names_path_file_and_line(tmp_path):
 
 
 def test_missing_texture_is_an_error(tmp_path):
-    scene_path = _scene_file(tmp_path, """
+    scene_path = _scene_file(
+        tmp_path,
+        """
         nodes:
           - material: {description: pbr, uniforms: {albedo_map: gone.jpg}}
-    """)
+    """,
+    )
     with pytest.raises(ConfigError) as err:
         load_scene(scene_path)
     assert "gone.jpg" in str(err.value) and err.value.line == 2
@@ -301,11 +341,11 @@ def test_missing_scene_file():
 
 # ---- mesh files ------------------------------------------------------------------------------
 
+
 def test_obj_without_normals_or_texcoords(tmp_path):
     # A tetrahedron with outward CCW faces, written by hand: only v and f lines.
     p = tmp_path / "tet.obj"
-    p.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n"
-                 "f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n")
+    p.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n")
     mesh = load_mesh_file(p)
     _check_mesh_invariants(mesh)
     assert mesh.triangle_count == 4 and mesh.positions.shape == (4, 3)
@@ -324,17 +364,19 @@ def test_flat_obj_gets_normals_from_winding(tmp_path):
 
 def test_obj_with_normals_and_uvs_keeps_them(tmp_path):
     p = tmp_path / "tri.obj"
-    p.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0.25 0.5\nvt 1 0\nvt 0 1\nvn 0 0 2\nvn 0 0 2\nvn 0 0 2\n"
-                 "f 1/1/1 2/2/2 3/3/3\n")
+    p.write_text(
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0.25 0.5\nvt 1 0\nvt 0 1\nvn 0 0 2\nvn 0 0 2\nvn 0 0 2\nf 1/1/1 2/2/2 3/3/3\n"
+    )
     mesh = load_mesh_file(p)
-    np.testing.assert_allclose(mesh.normals, [[0, 0, 1]] * 3, atol=1e-6)   # normalised
+    np.testing.assert_allclose(mesh.normals, [[0, 0, 1]] * 3, atol=1e-6)  # normalised
     assert sorted(map(tuple, mesh.texcoords.tolist())) == [(0, 1), (0.25, 0.5), (1, 0)]
 
 
 def test_gltf_scene_is_flattened_with_transforms(tmp_path):
     sc = trimesh.Scene()
-    sc.add_geometry(trimesh.creation.box(), node_name="a",
-                    transform=trimesh.transformations.translation_matrix([5, 0, 0]))
+    sc.add_geometry(
+        trimesh.creation.box(), node_name="a", transform=trimesh.transformations.translation_matrix([5, 0, 0])
+    )
     sc.add_geometry(trimesh.creation.box(), node_name="b")
     sc.export(tmp_path / "two.glb")
     mesh = load_mesh_file(tmp_path / "two.glb")
@@ -366,6 +408,7 @@ def test_unsupported_mesh_format(tmp_path):
 
 # ---- errors with lines -----------------------------------------------------------------------
 
+
 def _error(text: str) -> ConfigError:
     with pytest.raises(ConfigError) as err:
         load_scene_text(_yaml(text), "bad.yaml")
@@ -392,14 +435,16 @@ def test_unclosed_bracket_reports_a_line():
     assert e.line is not None and e.line >= 1 and "invalid YAML" in e.reason
 
 
-@pytest.mark.parametrize("text, line, key", [
-    ("background: [0, 0, 0]\nlightz: []\n", 2, "lightz"),
-    ("nodes:\n  - name: a\n    mesh: {primitive: box}\n    materail: {description: pbr}\n", 4,
-     "nodes[0].materail"),
-    ("camera:\n  position: [0, 1, 5]\n  fov: 60\n", 3, "camera.fov"),
-    ("lights:\n  - type: point\n    colour: [1, 1, 1]\n", 3, "lights[0].colour"),
-    ("nodes:\n  - transform: {translation: [0, 0, 0], rotate: [0, 1, 0]}\n", 2, "nodes[0].transform.rotate"),
-])
+@pytest.mark.parametrize(
+    "text, line, key",
+    [
+        ("background: [0, 0, 0]\nlightz: []\n", 2, "lightz"),
+        ("nodes:\n  - name: a\n    mesh: {primitive: box}\n    materail: {description: pbr}\n", 4, "nodes[0].materail"),
+        ("camera:\n  position: [0, 1, 5]\n  fov: 60\n", 3, "camera.fov"),
+        ("lights:\n  - type: point\n    colour: [1, 1, 1]\n", 3, "lights[0].colour"),
+        ("nodes:\n  - transform: {translation: [0, 0, 0], rotate: [0, 1, 0]}\n", 2, "nodes[0].transform.rotate"),
+    ],
+)
 def test_unknown_key_names_key_and_line(text, line, key):
     e = _error(text)
     assert (e.line, e.key) == (line, key)
@@ -407,40 +452,50 @@ def test_unknown_key_names_key_and_line(text, line, key):
     assert e.hint and "valid keys" in e.hint
 
 
-@pytest.mark.parametrize("text, line, key", [
-    ("nodes:\n  - name: a\n    transform:\n      translation: [1, 2]\n", 4, "nodes[0].transform.translation"),
-    ("background: [0, 0, 0, 1]\n", 1, "background"),
-    ("lights:\n  - {type: point, color: [1, 1]}\n", 2, "lights[0].color"),
-    ("camera: {up: [0, 1, 0, 0]}\n", 1, "camera.up"),
-    ("nodes:\n  - transform: {scale: [1, 1]}\n", 2, "nodes[0].transform.scale"),
-])
+@pytest.mark.parametrize(
+    "text, line, key",
+    [
+        ("nodes:\n  - name: a\n    transform:\n      translation: [1, 2]\n", 4, "nodes[0].transform.translation"),
+        ("background: [0, 0, 0, 1]\n", 1, "background"),
+        ("lights:\n  - {type: point, color: [1, 1]}\n", 2, "lights[0].color"),
+        ("camera: {up: [0, 1, 0, 0]}\n", 1, "camera.up"),
+        ("nodes:\n  - transform: {scale: [1, 1]}\n", 2, "nodes[0].transform.scale"),
+    ],
+)
 def test_wrong_vector_length_rejected(text, line, key):
     e = _error(text)
     assert (e.line, e.key) == (line, key)
     assert "expected 3 numbers" in e.reason
 
 
-@pytest.mark.parametrize("text, line, key, fragment", [
-    ("lights:\n  - type: laser\n", 2, "lights[0].type", "unknown light type"),
-    ("lights:\n  - {type: directional, position: [0, 1, 0]}\n", 2, "lights[0].position", "does not apply"),
-    ("lights:\n  - {type: point,\n     intensity: bright}\n", 3, "lights[0].intensity", "expected a number"),
-    ("lights:\n  - {type: point, radius: 0}\n", 2, "lights[0].radius", "out of range"),
-    ("lights:\n  - {type: spot, inner_angle_deg: 40, outer_angle_deg: 30}\n", 2, "lights[0].inner_angle_deg",
-     "exceeds"),
-    ("lights:\n  - {type: spot, direction: [0, 0, 0]}\n", 2, "lights[0].direction", "zero"),
-    ("lights: {type: point}\n", 1, "lights", "expected a list"),
-    ("nodes:\n  - name: a\n  - mesh: box\n", 3, "nodes[1].mesh", "expected a mapping"),
-    ("nodes:\n  - mesh: {primitive: sphere,\n           radius: -1}\n", 3, "nodes[0].mesh.radius", "radius"),
-    ("nodes:\n  - mesh: {primitive: teapot}\n", 2, "nodes[0].mesh.primitive", "unknown primitive"),
-    ("nodes:\n  - mesh: {primitive: box, file: a.obj}\n", 2, "nodes[0].mesh", "exactly one"),
-    ("nodes:\n  - transform: {scale: 0}\n", 2, "nodes[0].transform.scale", "non-zero"),
-    ("nodes:\n  - material: {uniforms: {alpha: 0.5}}\n", 2, "nodes[0].material", "description"),
-    ("camera: {fov_y: '60'}\n", 1, "camera.fov_y", "expected a number"),
-    ("camera: {near: 10, far: 5}\n", 1, "camera.far", "greater than near"),
-    ("camera: {position: [0, 0, 0], target: [0, 0, 0]}\n", 1, "camera.target", "equals"),
-    ("nodes: []\nnodes: []\n", 2, "nodes", "duplicate"),
-    ("- just\n- a list\n", 1, None, "expected a mapping"),
-])
+@pytest.mark.parametrize(
+    "text, line, key, fragment",
+    [
+        ("lights:\n  - type: laser\n", 2, "lights[0].type", "unknown light type"),
+        ("lights:\n  - {type: directional, position: [0, 1, 0]}\n", 2, "lights[0].position", "does not apply"),
+        ("lights:\n  - {type: point,\n     intensity: bright}\n", 3, "lights[0].intensity", "expected a number"),
+        ("lights:\n  - {type: point, radius: 0}\n", 2, "lights[0].radius", "out of range"),
+        (
+            "lights:\n  - {type: spot, inner_angle_deg: 40, outer_angle_deg: 30}\n",
+            2,
+            "lights[0].inner_angle_deg",
+            "exceeds",
+        ),
+        ("lights:\n  - {type: spot, direction: [0, 0, 0]}\n", 2, "lights[0].direction", "zero"),
+        ("lights: {type: point}\n", 1, "lights", "expected a list"),
+        ("nodes:\n  - name: a\n  - mesh: box\n", 3, "nodes[1].mesh", "expected a mapping"),
+        ("nodes:\n  - mesh: {primitive: sphere,\n           radius: -1}\n", 3, "nodes[0].mesh.radius", "radius"),
+        ("nodes:\n  - mesh: {primitive: teapot}\n", 2, "nodes[0].mesh.primitive", "unknown primitive"),
+        ("nodes:\n  - mesh: {primitive: box, file: a.obj}\n", 2, "nodes[0].mesh", "exactly one"),
+        ("nodes:\n  - transform: {scale: 0}\n", 2, "nodes[0].transform.scale", "non-zero"),
+        ("nodes:\n  - material: {uniforms: {alpha: 0.5}}\n", 2, "nodes[0].material", "description"),
+        ("camera: {fov_y: '60'}\n", 1, "camera.fov_y", "expected a number"),
+        ("camera: {near: 10, far: 5}\n", 1, "camera.far", "greater than near"),
+        ("camera: {position: [0, 0, 0], target: [0, 0, 0]}\n", 1, "camera.target", "equals"),
+        ("nodes: []\nnodes: []\n", 2, "nodes", "duplicate"),
+        ("- just\n- a list\n", 1, None, "expected a mapping"),
+    ],
+)
 def test_invalid_values_report_key_and_line(text, line, key, fragment):
     e = _error(text)
     assert (e.line, e.key) == (line, key)
@@ -448,6 +503,7 @@ def test_invalid_values_report_key_and_line(text, line, key, fragment):
 
 
 # ---- demo scene ------------------------------------------------------------------------------
+
 
 def _is_transparent(node) -> bool:
     mat = node.material
@@ -465,7 +521,7 @@ def test_demo_scene_contents():
     assert scene.source is not None and scene.source.name == "demo_scene.yaml"
     assert len(scene.lights) >= 4
     assert {l.type for l in scene.lights} == {"point", "spot", "directional"}
-    assert len({l.color for l in scene.lights}) >= 3           # coloured, not all white
+    assert len({l.color for l in scene.lights}) >= 3  # coloured, not all white
     drawn = [(n, w) for n, w in scene.walk() if n.mesh is not None]
     for node, _ in drawn:
         _check_mesh_invariants(node.mesh)
@@ -483,8 +539,7 @@ def test_demo_scene_contents():
 
     # Transparent objects must overlap each other (world AABBs intersect) for the demo to mean anything.
     boxes = [(c.min(0), c.max(0)) for c in (_world_corners(n.mesh, w) for n, w in transparent)]
-    overlapping = sum(np.all(a[0] < b[1]) and np.all(b[0] < a[1])
-                      for i, a in enumerate(boxes) for b in boxes[i + 1:])
+    overlapping = sum(np.all(a[0] < b[1]) and np.all(b[0] < a[1]) for i, a in enumerate(boxes) for b in boxes[i + 1 :])
     assert overlapping >= 3
 
 
@@ -493,7 +548,7 @@ def test_demo_camera_frames_every_object():
     cam = scene.camera
     vp = cam.projection_matrix(16 / 9) @ cam.view_matrix()
     for node, world in scene.walk():
-        if node.mesh is None or node.name == "ground":   # the ground deliberately runs off-screen
+        if node.mesh is None or node.name == "ground":  # the ground deliberately runs off-screen
             continue
         pts = np.c_[_world_corners(node.mesh, world), np.ones(8)]
         clip = (vp @ pts.T).T

@@ -1,4 +1,5 @@
 """Load and validate one material description: typed uniforms and GLSL stage methods."""
+
 from __future__ import annotations
 
 import json
@@ -41,8 +42,8 @@ class Method:
     name: str
     stage: str
     source: str
-    file: Path          # where the source text lives (JSON or .glsl)
-    first_line: int     # line in `file` where the source starts
+    file: Path  # where the source text lives (JSON or .glsl)
+    first_line: int  # line in `file` where the source starts
 
 
 @dataclass
@@ -71,8 +72,13 @@ class MaterialDescription:
             rhs = rhs.strip()
             if op == "=" and _LITERAL_ONE.match(rhs):
                 continue
-            if op in ("=", "*=") and _IDENT.match(rhs) and rhs in self.uniforms \
-                    and self.uniforms[rhs].type == "float" and float(values.get(rhs, 1.0)) >= 1.0:
+            if (
+                op in ("=", "*=")
+                and _IDENT.match(rhs)
+                and rhs in self.uniforms
+                and self.uniforms[rhs].type == "float"
+                and float(values.get(rhs, 1.0)) >= 1.0
+            ):
                 continue
             return True
         return False
@@ -83,8 +89,13 @@ class MaterialDescription:
         out = {n: u.default for n, u in self.uniforms.items()}
         for key, value in (overrides or {}).items():
             if key not in self.uniforms:
-                raise ConfigError(f"material '{self.name}' has no uniform '{key}'", file, line, key,
-                                  f"known uniforms: {', '.join(self.uniforms) or 'none'}")
+                raise ConfigError(
+                    f"material '{self.name}' has no uniform '{key}'",
+                    file,
+                    line,
+                    key,
+                    f"known uniforms: {', '.join(self.uniforms) or 'none'}",
+                )
             out[key] = check_value(self.uniforms[key].type, value, file, line, key)
         return out
 
@@ -103,8 +114,9 @@ def check_value(typ: str, value, file, line, key):
         return value
     if typ in ("float", "int"):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(f"expected {typ}, got {type(value).__name__} {value!r}", file, line, key,
-                              "write a plain number")
+            raise ConfigError(
+                f"expected {typ}, got {type(value).__name__} {value!r}", file, line, key, "write a plain number"
+            )
         if typ == "int" and not float(value).is_integer():
             raise ConfigError(f"expected int, got {value!r}", file, line, key)
         return int(value) if typ == "int" else float(value)
@@ -121,7 +133,7 @@ def _line_of(text: str, pos: int) -> int:
 def _source_start(text: str, spos: int) -> int:
     """Offset of the first source character after '"source":' (inside a list of lines, its first string)."""
     colon = text.find(":", spos)
-    rest = text[colon + 1:].lstrip()
+    rest = text[colon + 1 :].lstrip()
     start = len(text) - len(rest)
     return text.find('"', start) if rest.startswith("[") else start
 
@@ -129,8 +141,13 @@ def _source_start(text: str, spos: int) -> int:
 def _method(entry, stage: str, i: int, path: Path, text: str, search_from: int) -> tuple[Method, int]:
     key = f"{stage}[{i}]"
     if not isinstance(entry, dict) or "name" not in entry or not ({"source", "file"} & set(entry)):
-        raise ConfigError("a method needs 'name' and either 'source' or 'file'", path, None, key,
-                          'e.g. {"name": "my_method", "source": "void my_method() { gua_alpha = 0.5; }"}')
+        raise ConfigError(
+            "a method needs 'name' and either 'source' or 'file'",
+            path,
+            None,
+            key,
+            'e.g. {"name": "my_method", "source": "void my_method() { gua_alpha = 0.5; }"}',
+        )
     name = entry["name"]
     if not isinstance(name, str) or not _IDENT.match(name):
         raise ConfigError(f"method name {name!r} is not a GLSL identifier", path, None, key)
@@ -152,8 +169,13 @@ def _method(entry, stage: str, i: int, path: Path, text: str, search_from: int) 
         first = _line_of(text, _source_start(text, spos))
         file = path
     if not re.search(rf"\bvoid\s+{name}\s*\(\s*\)", source):
-        raise ConfigError(f"method source does not define 'void {name}()'", file, first, key,
-                          "each method is a GLSL function named like the method, taking no arguments")
+        raise ConfigError(
+            f"method source does not define 'void {name}()'",
+            file,
+            first,
+            key,
+            "each method is a GLSL function named like the method, taking no arguments",
+        )
     return Method(name, stage, source, file, first), pos + 1
 
 
@@ -172,19 +194,33 @@ def load_material(path: str | Path) -> MaterialDescription:
     unknown = set(data) - _TOP_KEYS
     if unknown:
         k = sorted(unknown)[0]
-        raise ConfigError(f"unknown key '{k}'", path, _line_of(text, max(text.find(f'"{k}"'), 0)), k,
-                          f"known keys: {', '.join(sorted(_TOP_KEYS))}")
+        raise ConfigError(
+            f"unknown key '{k}'",
+            path,
+            _line_of(text, max(text.find(f'"{k}"'), 0)),
+            k,
+            f"known keys: {', '.join(sorted(_TOP_KEYS))}",
+        )
     name = data.get("name", path.stem)
     uniforms: dict[str, UniformSpec] = {}
     for uname, spec in (data.get("uniforms") or {}).items():
         line = _line_of(text, max(text.find(f'"{uname}"'), 0))
         if not _IDENT.match(uname) or uname.startswith("gua_"):
-            raise ConfigError(f"uniform name {uname!r} is not allowed", path, line, uname,
-                              "use a GLSL identifier not starting with gua_")
+            raise ConfigError(
+                f"uniform name {uname!r} is not allowed",
+                path,
+                line,
+                uname,
+                "use a GLSL identifier not starting with gua_",
+            )
         if not isinstance(spec, dict) or spec.get("type") not in UNIFORM_SIZES:
             raise ConfigError(f"uniform needs a 'type' out of {', '.join(UNIFORM_SIZES)}", path, line, uname)
-        default = spec.get("default", "white" if spec["type"] == "sampler2D" else
-                           (0.0 if UNIFORM_SIZES[spec["type"]] == 1 else [0.0] * UNIFORM_SIZES[spec["type"]]))
+        default = spec.get(
+            "default",
+            "white"
+            if spec["type"] == "sampler2D"
+            else (0.0 if UNIFORM_SIZES[spec["type"]] == 1 else [0.0] * UNIFORM_SIZES[spec["type"]]),
+        )
         uniforms[uname] = UniformSpec(uname, spec["type"], check_value(spec["type"], default, path, line, uname))
     methods: dict[str, list[Method]] = {}
     pos = 0

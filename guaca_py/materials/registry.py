@@ -1,4 +1,5 @@
 """Find material descriptions by name: built-ins plus user search paths."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -28,5 +29,10 @@ class MaterialRegistry:
             if c.is_file():
                 self._cache[name] = load_material(c)
                 return self._cache[name]
-        raise ConfigError(f"unknown material '{name}'", where[0], where[1], "material.description",
-                          f"known materials: {', '.join(self.names())}")
+        raise ConfigError(
+            f"unknown material '{name}'",
+            where[0],
+            where[1],
+            "material.description",
+            f"known materials: {', '.join(self.names())}",
+        )

@@ -1,4 +1,5 @@
 """Transparency methods: every OIT strategy of the same deferred pipeline, discovered by module."""
+
 from __future__ import annotations
 
 import importlib

@@ -5,6 +5,7 @@ in a per-pixel critical section), PostSort (unsorted list, sorted in a fixed loc
 composite) and PostMerge16 (unsorted list, exact order by rounds of 16 at composite). All share
 PreSortLF's node pool, payload, counters, overflow reporting and 'auto' growth.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -45,7 +46,8 @@ class ABufferVariant(PreSortLF):
         frame.stats["fragments"]["lock_abandoned"] = abandoned
         if abandoned:
             frame.stats.setdefault("warnings", []).append(
-                f"{abandoned} fragments gave up waiting for their pixel's lock (max_spin) and were dropped")
+                f"{abandoned} fragments gave up waiting for their pixel's lock (max_spin) and were dropped"
+            )
         return again
 
     def extra_memory(self) -> dict:
@@ -90,8 +92,9 @@ class PreSortCS(ABufferVariant):
     SETTINGS = {
         **PreSortLF.SETTINGS,
         "lock": LOCK_SETTING,
-        "max_spin": Setting((int,), 65536, "lock attempts before a fragment gives up (counted, reported)",
-                            check=positive),
+        "max_spin": Setting(
+            (int,), 65536, "lock attempts before a fragment gives up (counted, reported)", check=positive
+        ),
     }
 
     def __init__(self, settings, caps):
@@ -110,8 +113,12 @@ class PreSortCS(ABufferVariant):
 
     def template_vars(self) -> dict:
         """32-bit lists, the lock kind and its bound."""
-        return {**super().template_vars(), "ab_lock": self.lock, "max_spin": int(self.settings["max_spin"]),
-                "fragment_interlock": self.lock == "interlock"}
+        return {
+            **super().template_vars(),
+            "ab_lock": self.lock,
+            "max_spin": int(self.settings["max_spin"]),
+            "fragment_interlock": self.lock == "interlock",
+        }
 
     def extensions(self) -> str:
         """Fragment shader interlock where it is the critical section."""
@@ -160,8 +167,10 @@ class _PostBase(ABufferVariant):
             frame.stats.setdefault("warnings", []).append(self._truncation_warning(c))
 
     def _truncation_warning(self, c: dict) -> str:
-        return (f"composite truncated {c['truncated']} fragments in {c['truncated_pixels']} pixels "
-                f"(list walk bound max_steps={self.settings['max_steps']})")
+        return (
+            f"composite truncated {c['truncated']} fragments in {c['truncated_pixels']} pixels "
+            f"(list walk bound max_steps={self.settings['max_steps']})"
+        )
 
 
 class PostSort(_PostBase):
@@ -171,8 +180,13 @@ class PostSort(_PostBase):
     summary = "unsorted per-pixel lists sorted at composite in a fixed local array (k nearest kept)"
     SETTINGS = {
         **PreSortLF.SETTINGS,
-        "max_fragments": Setting((int,), 32, "local array size of the composite sort; farther fragments "
-                                 "of deeper pixels are truncated (counted, reported)", check=_array_size),
+        "max_fragments": Setting(
+            (int,),
+            32,
+            "local array size of the composite sort; farther fragments "
+            "of deeper pixels are truncated (counted, reported)",
+            check=_array_size,
+        ),
     }
 
     def resolve_template(self) -> str:
@@ -184,8 +198,10 @@ class PostSort(_PostBase):
         return {**super().template_vars(), "max_fragments": int(self.settings["max_fragments"])}
 
     def _truncation_warning(self, c: dict) -> str:
-        return (f"post_sort truncated {c['truncated']} fragments in {c['truncated_pixels']} pixels deeper than "
-                f"max_fragments={self.settings['max_fragments']} (the nearest were kept); raise max_fragments")
+        return (
+            f"post_sort truncated {c['truncated']} fragments in {c['truncated_pixels']} pixels deeper than "
+            f"max_fragments={self.settings['max_fragments']} (the nearest were kept); raise max_fragments"
+        )
 
 
 class PostMerge16(_PostBase):

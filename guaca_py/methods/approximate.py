@@ -5,6 +5,7 @@ shade_surface and the frame's culled lights, hence `geometry_in_composite`) and 
 accumulation targets that test against the G-buffer depth; the composite then puts the
 accumulated layer, as premultiplied color and coverage, in front of the shaded opaque surface.
 """
+
 from __future__ import annotations
 
 import math
@@ -41,12 +42,12 @@ class ForwardBlendMethod(TransparencyMethod):
 
     exact = False
     geometry_in_composite = True
-    blend = "over"                     # template variant of approx/blend_fragment.glsl.j2
+    blend = "over"  # template variant of approx/blend_fragment.glsl.j2
     accum_dtype = "f4"
 
     def __init__(self, settings, caps):
         super().__init__(settings, caps)
-        self._phase = "composite"      # template variant: geometry phases add the lighting variables
+        self._phase = "composite"  # template variant: geometry phases add the lighting variables
         self._shading: dict = {}
         self._fbo = self._clear = None
         self._targets: list = []
@@ -86,7 +87,7 @@ class ForwardBlendMethod(TransparencyMethod):
 
     def blend_state(self, mgl) -> tuple:
         """Blend factors (src rgb, dst rgb, src alpha, dst alpha) of the accumulation."""
-        if self.blend == "over":   # premultiplied back-to-front "over"
+        if self.blend == "over":  # premultiplied back-to-front "over"
             return (mgl.ONE, mgl.ONE_MINUS_SRC_ALPHA, mgl.ONE, mgl.ONE_MINUS_SRC_ALPHA)
         # additive sums in rgb, multiplicative revealage in alpha (one state for both targets)
         return (mgl.ONE, mgl.ONE, mgl.ZERO, mgl.ONE_MINUS_SRC_ALPHA)
@@ -127,8 +128,7 @@ class ForwardBlendMethod(TransparencyMethod):
 
     def finish(self, frame) -> bool:
         """Report fragments blended (nothing is dropped or merged: blending keeps every fragment)."""
-        frame.stats["fragments"] = {"stored": self._fragments, "blended": self._fragments,
-                                    "dropped": 0, "merged": 0}
+        frame.stats["fragments"] = {"stored": self._fragments, "blended": self._fragments, "dropped": 0, "merged": 0}
         frame.stats["geometry_passes"] = int(self.geometry_passes)
         return False
 
@@ -161,7 +161,7 @@ class ForwardBlendMethod(TransparencyMethod):
         return {"blend_accum": total, "blend_accum_used": total} if self._targets else {}
 
     def _release_targets(self) -> None:
-        for f in (self._clear or []):
+        for f in self._clear or []:
             f.release()
         if self._fbo is not None:
             self._fbo.release()
@@ -206,10 +206,18 @@ class WeightedBlended(ForwardBlendMethod):
     blend = "weighted"
     summary = "weighted blended OIT: depth-weighted average color, exact revealage (McGuire & Bavoil 2013)"
     SETTINGS = {
-        "weight": Setting((str,), "eq7", "depth weight function of the paper: eq7, eq8, eq9 (view depth) or "
-                          "eq10 (window depth)", check=_weights),
-        "accum_format": Setting((str,), "rgba32f", "accumulation precision (the paper uses rgba16f; sums of "
-                                "large weights can exceed half-float range)", choices=("rgba16f", "rgba32f")),
+        "weight": Setting(
+            (str,),
+            "eq7",
+            "depth weight function of the paper: eq7, eq8, eq9 (view depth) or eq10 (window depth)",
+            check=_weights,
+        ),
+        "accum_format": Setting(
+            (str,),
+            "rgba32f",
+            "accumulation precision (the paper uses rgba16f; sums of large weights can exceed half-float range)",
+            choices=("rgba16f", "rgba32f"),
+        ),
     }
 
     @property

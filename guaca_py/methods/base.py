@@ -1,4 +1,5 @@
 """The interface every transparency method implements inside the deferred pipeline."""
+
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, ClassVar
@@ -34,7 +35,7 @@ class TransparencyMethod:
     SETTINGS: ClassVar[dict[str, Setting]] = {}
     geometry_in_composite: ClassVar[bool] = False
 
-    def __init__(self, settings: dict, caps: "Capabilities"):
+    def __init__(self, settings: dict, caps: Capabilities):
         self.settings = settings
         self.caps = caps
 
@@ -45,7 +46,7 @@ class TransparencyMethod:
         return {**common, **cls.SETTINGS}
 
     @classmethod
-    def unsupported_reason(cls, caps: "Capabilities") -> str | None:
+    def unsupported_reason(cls, caps: Capabilities) -> str | None:
         """Why this device cannot run the method, or None when it can."""
         return None
 
@@ -62,14 +63,14 @@ class TransparencyMethod:
         """GLSL #extension lines the method's code needs."""
         return ""
 
-    def prepare(self, frame: "FrameState") -> None:
+    def prepare(self, frame: FrameState) -> None:
         """Allocate/clear per-frame storage before transparent geometry is drawn."""
 
-    def render_transparent(self, frame: "FrameState") -> None:
+    def render_transparent(self, frame: FrameState) -> None:
         """Draw the transparent draw list (frame.draw_transparent) as many times as the method needs."""
         raise NotImplementedError
 
-    def finish(self, frame: "FrameState") -> bool:
+    def finish(self, frame: FrameState) -> bool:
         """Read counters into frame.stats; return True to ask for the frame to be rendered again."""
         return False
 
@@ -78,10 +79,10 @@ class TransparencyMethod:
         """Template included by the composite pass; defines gua_resolve_transparent()."""
         raise NotImplementedError
 
-    def bind_composite(self, frame: "FrameState", program) -> None:
+    def bind_composite(self, frame: FrameState, program) -> None:
         """Bind storage and uniforms the resolve code reads."""
 
-    def after_composite(self, frame: "FrameState") -> None:
+    def after_composite(self, frame: FrameState) -> None:
         """Read what the composite pass counted (e.g. fragments a resolve had to truncate) into frame.stats."""
 
     def composite_threshold(self) -> float:
@@ -97,16 +98,22 @@ class TransparencyMethod:
 
 
 # Methods with a per-pixel critical section (presort_cs*, kbuffer) share this setting.
-LOCK_SETTING = Setting((str,), "auto", "critical section: 'interlock' (ARB_fragment_shader_interlock), "
-                       "'spin' (per-pixel spin lock) or 'auto' (interlock where the device has it)",
-                       choices=("auto", "interlock", "spin"))
+LOCK_SETTING = Setting(
+    (str,),
+    "auto",
+    "critical section: 'interlock' (ARB_fragment_shader_interlock), "
+    "'spin' (per-pixel spin lock) or 'auto' (interlock where the device has it)",
+    choices=("auto", "interlock", "spin"),
+)
 
 
-def resolve_lock(method_id: str, lock: str, caps: "Capabilities") -> str:
+def resolve_lock(method_id: str, lock: str, caps: Capabilities) -> str:
     """The critical section a method runs with: 'interlock' or 'spin'; a missing interlock is refused."""
     if lock == "interlock" and not caps.fragment_interlock:
-        raise UnsupportedMethodError(f"method '{method_id}' with lock 'interlock' cannot run on {caps.renderer}: "
-                                     "no GL_ARB_fragment_shader_interlock (use lock 'spin' or 'auto')")
+        raise UnsupportedMethodError(
+            f"method '{method_id}' with lock 'interlock' cannot run on {caps.renderer}: "
+            "no GL_ARB_fragment_shader_interlock (use lock 'spin' or 'auto')"
+        )
     # a contended spin lock serializes badly on GPUs (measured: the k-buffer took 854 ms of
     # geometry at 1024² on the H100 demo); the ordered interlock is the hardware's critical section
     return lock if lock != "auto" else ("interlock" if caps.fragment_interlock else "spin")

@@ -6,6 +6,7 @@ word), and store the shaded-later payload of every fragment in a second pass. pa
 into pages of P fragments linked per pixel in a single pass and grows its page pool on overflow.
 All three resolve by sorting each pixel's fragments by (depth, tie id) in the composite pass.
 """
+
 from __future__ import annotations
 
 import math
@@ -38,8 +39,9 @@ class _CountedStorage(TransparencyMethod):
 
     layout: str = ""
     SETTINGS = {
-        "budget_mb": Setting((str, int, float), "auto", "cap on fragment storage in MB, or 'auto' (the frame's need)",
-                             check=_budget),
+        "budget_mb": Setting(
+            (str, int, float), "auto", "cap on fragment storage in MB, or 'auto' (the frame's need)", check=_budget
+        ),
         "sort_chunk": Setting((int,), 32, "fragments sorted per resolve sweep (local array size)", check=_chunk),
     }
 
@@ -69,7 +71,7 @@ class _CountedStorage(TransparencyMethod):
 
     def _max_slots(self, ctx, slot_bytes: int) -> int:
         """Storage cap in slots: budget_mb if set, and the device's largest storage block."""
-        limit = int(ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 2 ** 31 - 1))
+        limit = int(ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 2**31 - 1))
         if self.settings["budget_mb"] != "auto":
             limit = min(limit, int(self.settings["budget_mb"] * 1024 * 1024))
         return max(1, limit // slot_bytes)
@@ -108,8 +110,11 @@ class _CountedStorage(TransparencyMethod):
         frame.stats.setdefault("warnings", []).append(text)
 
     # ------------------------------------------------------------------ shaders
-    _PHASE_TEMPLATES = {"count": "counted/count.glsl.j2", "store": "counted/store.glsl.j2",
-                        "insert": "counted/paged_insert.glsl.j2"}
+    _PHASE_TEMPLATES = {
+        "count": "counted/count.glsl.j2",
+        "store": "counted/store.glsl.j2",
+        "insert": "counted/paged_insert.glsl.j2",
+    }
     first_phase = "count"
 
     def fragment_template(self) -> str:
@@ -206,15 +211,25 @@ class DynamicFragmentBuffer(_CountedStorage):
         total, capacity = self._last["total"], self._last["capacity"]
         frame.stats["geometry_passes"] = 2
         frame.stats["fragments"] = {
-            "stored": c["stored"], "counted": total, "overflow": c["overflow"], "dropped": c["overflow"],
-            "unfilled": max(0, min(total, capacity) - c["stored"]), "early_termination_culled": 0,
+            "stored": c["stored"],
+            "counted": total,
+            "overflow": c["overflow"],
+            "dropped": c["overflow"],
+            "unfilled": max(0, min(total, capacity) - c["stored"]),
+            "early_termination_culled": 0,
         }
         if capacity < total:
-            self._warn(frame, f"{self.id}: frame needs {total} fragments, storage capped at {capacity} "
-                              f"(budget_mb or the device's storage block limit); {c['overflow']} dropped")
+            self._warn(
+                frame,
+                f"{self.id}: frame needs {total} fragments, storage capped at {capacity} "
+                f"(budget_mb or the device's storage block limit); {c['overflow']} dropped",
+            )
         elif c["overflow"] or c["stored"] != total:
-            self._warn(frame, f"{self.id}: store pass saw {c['stored'] + c['overflow']} fragments, count pass "
-                              f"{total}; {c['overflow']} dropped (rasterization differed between passes)")
+            self._warn(
+                frame,
+                f"{self.id}: store pass saw {c['stored'] + c['overflow']} fragments, count pass "
+                f"{total}; {c['overflow']} dropped (rasterization differed between passes)",
+            )
         self._last["stored"] = c["stored"]
         return False
 
@@ -222,11 +237,14 @@ class DynamicFragmentBuffer(_CountedStorage):
         """Per-pixel counts and offsets, fragment array (allocated == the frame's need), scan buffers."""
         if not self._bufs:
             return {}
-        return {"counted_counts": self._bufs["counts"].size, "counted_offsets": self._bufs["pixels"].size,
-                "counted_fragments": self._bufs["nodes"].size,
-                "counted_fragments_used": self._last.get("stored", 0) * PAYLOAD_BYTES,
-                "counted_scan_aux": self._scan.aux_bytes() if self._scan else 0,
-                "counted_node_bytes": PAYLOAD_BYTES}
+        return {
+            "counted_counts": self._bufs["counts"].size,
+            "counted_offsets": self._bufs["pixels"].size,
+            "counted_fragments": self._bufs["nodes"].size,
+            "counted_fragments_used": self._last.get("stored", 0) * PAYLOAD_BYTES,
+            "counted_scan_aux": self._scan.aux_bytes() if self._scan else 0,
+            "counted_node_bytes": PAYLOAD_BYTES,
+        }
 
 
 class SBuffer(DynamicFragmentBuffer):
@@ -297,9 +315,9 @@ class PagedLinkedLists(_CountedStorage):
         super().__init__(settings, caps)
         self.page = int(settings["page_size"])
         self.fill_bits = max(1, self.page.bit_length())  # holds 0..P
-        self.page_bytes = self.page * PAYLOAD_BYTES + 4   # payload slots + link
-        self.capacity = 0   # pages in the pool, null page 0 included
-        self._want = 0      # pool size requested for the next prepare()
+        self.page_bytes = self.page * PAYLOAD_BYTES + 4  # payload slots + link
+        self.capacity = 0  # pages in the pool, null page 0 included
+        self._want = 0  # pool size requested for the next prepare()
 
     def _bindings(self) -> dict[int, str]:
         return {0: "pixels", 1: "nodes", 2: "links", 4: "counters"}
@@ -309,8 +327,12 @@ class PagedLinkedLists(_CountedStorage):
 
     def template_vars(self) -> dict:
         """Adds page size, fill bits and the retry bound."""
-        return {**super().template_vars(), "page_size": self.page, "fill_bits": self.fill_bits,
-                "max_steps": int(self.settings["max_steps"])}
+        return {
+            **super().template_vars(),
+            "page_size": self.page,
+            "fill_bits": self.fill_bits,
+            "max_steps": int(self.settings["max_steps"]),
+        }
 
     def _page_limit(self, ctx) -> int:
         """Most pages: storage cap, and page indices must fit the head word next to the fill."""
@@ -351,9 +373,14 @@ class PagedLinkedLists(_CountedStorage):
         used = min(requested, self.capacity - 1)
         frame.stats["geometry_passes"] = 1
         frame.stats["fragments"] = {
-            "stored": c["stored"], "overflow": c["overflow"], "dropped": c["overflow"] + c["guard"],
-            "guard_abandoned": c["guard"], "pages_used": used, "pages_requested": requested,
-            "pages_wasted": c["wasted_pages"], "early_termination_culled": 0,
+            "stored": c["stored"],
+            "overflow": c["overflow"],
+            "dropped": c["overflow"] + c["guard"],
+            "guard_abandoned": c["guard"],
+            "pages_used": used,
+            "pages_requested": requested,
+            "pages_wasted": c["wasted_pages"],
+            "early_termination_culled": 0,
         }
         self._last = {"used_pages": used, "stored": c["stored"]}
         auto = self.settings["budget_mb"] == "auto"
@@ -363,14 +390,23 @@ class PagedLinkedLists(_CountedStorage):
             # Every dropped fragment asked for at most one page, so `requested` bounds the need
             # (by up to P times for dropped fragments); the shrink rule below trims it next frame.
             self._want = min(limit, int(requested * 1.15) + 1024)
-            self._warn(frame, f"paged_ll: pool of {self.capacity - 1} pages overflowed by {c['overflow']} "
-                              f"fragments; grown to {self._want - 1} pages and re-rendered")
+            self._warn(
+                frame,
+                f"paged_ll: pool of {self.capacity - 1} pages overflowed by {c['overflow']} "
+                f"fragments; grown to {self._want - 1} pages and re-rendered",
+            )
             return True
         if c["overflow"]:
-            hint = ("the device's storage block limit: try a smaller page_size" if self.capacity >= limit and auto
-                    else "raise transparency.budget_mb or use 'auto'")
-            self._warn(frame, f"paged_ll overflow: {c['overflow']} fragments dropped (pool {self.capacity - 1} "
-                              f"pages of {self.page}); {hint}")
+            hint = (
+                "the device's storage block limit: try a smaller page_size"
+                if self.capacity >= limit and auto
+                else "raise transparency.budget_mb or use 'auto'"
+            )
+            self._warn(
+                frame,
+                f"paged_ll overflow: {c['overflow']} fragments dropped (pool {self.capacity - 1} "
+                f"pages of {self.page}); {hint}",
+            )
         if c["guard"]:
             self._warn(frame, f"{c['guard']} paged_ll insertions hit max_steps and were dropped")
         target = max(1024, int(used * 1.15) + 1024)
@@ -383,8 +419,10 @@ class PagedLinkedLists(_CountedStorage):
         if not self._bufs:
             return {}
         used = self._last.get("used_pages", 0)
-        return {"counted_heads": self._pixels * 4,
-                "counted_pages": self.capacity * self.page_bytes,
-                "counted_pages_used": (used + 1) * self.page_bytes,
-                "counted_fragments_used": self._last.get("stored", 0) * PAYLOAD_BYTES,
-                "counted_node_bytes": PAYLOAD_BYTES}
+        return {
+            "counted_heads": self._pixels * 4,
+            "counted_pages": self.capacity * self.page_bytes,
+            "counted_pages_used": (used + 1) * self.page_bytes,
+            "counted_fragments_used": self._last.get("stored", 0) * PAYLOAD_BYTES,
+            "counted_node_bytes": PAYLOAD_BYTES,
+        }

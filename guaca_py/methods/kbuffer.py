@@ -5,6 +5,7 @@ a per-pixel 32-bit spin lock (no 64-bit atomics or interlock needed; see
 approx/kbuffer_insert.glsl.j2). Fragments beyond k are merged into the farthest slot or dropped
 (`overflow`), counted, and reported as a warning. Exact whenever k >= the depth complexity.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -13,8 +14,8 @@ from ..pipeline.settings import Setting
 from .approximate import fill_uint_buffer
 from .base import LOCK_SETTING, TransparencyMethod, resolve_lock
 
-SLOT_BYTES = 32          # the shared 8-word fragment payload (common/payload_pack.glsl.j2)
-HEAD_BYTES = 8           # lock + fragment count
+SLOT_BYTES = 32  # the shared 8-word fragment payload (common/payload_pack.glsl.j2)
+HEAD_BYTES = 8  # lock + fragment count
 COUNTERS = ("inserted", "merged", "dropped", "guard", "filled", "max_count")
 
 
@@ -31,10 +32,15 @@ class KBuffer(TransparencyMethod):
     summary = "k nearest fragments per pixel in fixed sorted slots; overflow merged or dropped"
     SETTINGS = {
         "k": Setting((int,), 8, "fragment slots per pixel (1..64)", check=_k),
-        "overflow": Setting((str,), "merge", "fragments beyond k: merge into the farthest slot, or drop",
-                            choices=("merge", "drop")),
-        "max_spins": Setting((int,), 65536, "bound on lock attempts per fragment (a fragment that never "
-                             "wins the lock is dropped and counted)", check=lambda v: None if v > 0 else "must be > 0"),
+        "overflow": Setting(
+            (str,), "merge", "fragments beyond k: merge into the farthest slot, or drop", choices=("merge", "drop")
+        ),
+        "max_spins": Setting(
+            (int,),
+            65536,
+            "bound on lock attempts per fragment (a fragment that never wins the lock is dropped and counted)",
+            check=lambda v: None if v > 0 else "must be > 0",
+        ),
         "lock": LOCK_SETTING,
     }
 
@@ -82,15 +88,20 @@ class KBuffer(TransparencyMethod):
     def finish(self, frame) -> bool:
         """Counters → stats; overflow and lock-guard drops become warnings."""
         c = dict(zip(COUNTERS, np.frombuffer(self._counters.read(), dtype=np.uint32).tolist()))
-        evicted = c["inserted"] - c["filled"]               # every insert into a full pixel evicts one
-        rejected = c["merged"] + c["dropped"] - evicted     # fragments that arrived behind a full pixel
+        evicted = c["inserted"] - c["filled"]  # every insert into a full pixel evicts one
+        rejected = c["merged"] + c["dropped"] - evicted  # fragments that arrived behind a full pixel
         total = c["inserted"] + rejected + c["guard"]
         self._filled = c["filled"]
         frame.stats["critical_section"] = self.lock
         frame.stats["fragments"] = {
-            "total": total, "stored": c["filled"], "inserted": c["inserted"], "merged": c["merged"],
-            "dropped": c["dropped"] + c["guard"], "overflow": c["merged"] + c["dropped"],
-            "guard_abandoned": c["guard"], "max_per_pixel_over_k": c["max_count"],
+            "total": total,
+            "stored": c["filled"],
+            "inserted": c["inserted"],
+            "merged": c["merged"],
+            "dropped": c["dropped"] + c["guard"],
+            "overflow": c["merged"] + c["dropped"],
+            "guard_abandoned": c["guard"],
+            "max_per_pixel_over_k": c["max_count"],
         }
         frame.stats["geometry_passes"] = 1
         over = c["merged"] + c["dropped"]
@@ -98,10 +109,12 @@ class KBuffer(TransparencyMethod):
             how = "merged into the farthest slot" if self.settings["overflow"] == "merge" else "dropped"
             frame.stats.setdefault("warnings", []).append(
                 f"k-buffer overflow: {over} fragments beyond k={self.k} {how} (deepest pixel had "
-                f"{c['max_count']} fragments); raise transparency.k for an exact result")
+                f"{c['max_count']} fragments); raise transparency.k for an exact result"
+            )
         if c["guard"]:
             frame.stats.setdefault("warnings", []).append(
-                f"k-buffer: {c['guard']} fragments hit max_spins waiting for a pixel lock and were dropped")
+                f"k-buffer: {c['guard']} fragments hit max_spins waiting for a pixel lock and were dropped"
+            )
         return False
 
     # ------------------------------------------------------------------ shaders
@@ -115,8 +128,13 @@ class KBuffer(TransparencyMethod):
 
     def template_vars(self) -> dict:
         """k, overflow policy and spin bound (compile-time constants)."""
-        return {"k": self.k, "overflow": self.settings["overflow"], "max_spins": int(self.settings["max_spins"]),
-                "kb_lock": self.lock, "fragment_interlock": self.lock == "interlock"}
+        return {
+            "k": self.k,
+            "overflow": self.settings["overflow"],
+            "max_spins": int(self.settings["max_spins"]),
+            "kb_lock": self.lock,
+            "fragment_interlock": self.lock == "interlock",
+        }
 
     def extensions(self) -> str:
         """Fragment shader interlock where it is the critical section."""
@@ -131,8 +149,13 @@ class KBuffer(TransparencyMethod):
         if self._heads is None:
             return {}
         heads = self._pixels * HEAD_BYTES
-        return {"kbuffer_heads": heads, "kbuffer_heads_used": heads, "kbuffer_slots": self._pixels * self.k * SLOT_BYTES,
-                "kbuffer_slots_used": self._filled * SLOT_BYTES, "kbuffer_node_bytes": SLOT_BYTES}
+        return {
+            "kbuffer_heads": heads,
+            "kbuffer_heads_used": heads,
+            "kbuffer_slots": self._pixels * self.k * SLOT_BYTES,
+            "kbuffer_slots_used": self._filled * SLOT_BYTES,
+            "kbuffer_node_bytes": SLOT_BYTES,
+        }
 
     def release(self) -> None:
         """Free all buffers."""

@@ -13,6 +13,7 @@ with deterministic ties needs a 64-bit (depth, tie) comparison. The per-pass "de
 therefore emulated in colour targets read and written in primitive order (framebuffer fetch, or
 images inside an ordered fragment shader interlock).
 """
+
 from __future__ import annotations
 
 import math
@@ -25,12 +26,12 @@ from .base import TransparencyMethod
 
 # Counter words of peeling/counters.glsl.j2, in order.
 COUNTERS = ("in_range", "peeled", "composited", "overflow", "alloc", "guard", "saturated", "rejected")
-EMPTY_NEAR = "uvec4(GUA_INF, 0u, 0u, 0u)"          # slot clears (GLSL) of step.comp.j2's init step
+EMPTY_NEAR = "uvec4(GUA_INF, 0u, 0u, 0u)"  # slot clears (GLSL) of step.comp.j2's init step
 EMPTY_NEAR_TIE = "uvec4(0u, 0u, 0u, GUA_TIE_MAX)"
 EMPTY_FAR = "uvec4(GUA_LOWEST, 0u, 0u, 0u)"
 ZERO = "uvec4(0u)"
 ORDERED_PHASES = ("nearest", "dual", "stencil")
-UNIT_BOUNDS, UNIT_OPAQUE, UNIT_RANGE = 4, 5, 6   # method texture units of the geometry programs
+UNIT_BOUNDS, UNIT_OPAQUE, UNIT_RANGE = 4, 5, 6  # method texture units of the geometry programs
 _FETCH_EXT = "#extension GL_EXT_shader_framebuffer_fetch : require\n"
 _INTERLOCK_EXT = "#extension GL_ARB_fragment_shader_interlock : require\n"
 
@@ -54,24 +55,35 @@ class PeelingMethod(TransparencyMethod):
 
     exact = True
     geometry_in_composite = True
-    needs_ordering = True            # geometry passes read-modify-write per-pixel state in primitive order
-    step_method = ""                 # `method` variable of peeling/step.comp.j2
-    has_back = False                 # a back accumulation (dual)
-    has_range = False                # a per-pixel compositing range texture (hybrid, coherent)
+    needs_ordering = True  # geometry passes read-modify-write per-pixel state in primitive order
+    step_method = ""  # `method` variable of peeling/step.comp.j2
+    has_back = False  # a back accumulation (dual)
+    has_range = False  # a per-pixel compositing range texture (hybrid, coherent)
     SETTINGS = {
-        "max_passes": Setting((int,), 0, "cap on geometry passes per frame (0 = unlimited); layers left "
-                              "when it stops are reported as truncated", check=_non_negative),
-        "ordering": Setting((str,), "auto", "how a pass updates per-pixel state in primitive order: "
-                            "'fetch' (EXT_shader_framebuffer_fetch), 'interlock' (ARB_fragment_shader_interlock) "
-                            "or 'auto'", choices=("auto", "fetch", "interlock")),
+        "max_passes": Setting(
+            (int,),
+            0,
+            "cap on geometry passes per frame (0 = unlimited); layers left when it stops are reported as truncated",
+            check=_non_negative,
+        ),
+        "ordering": Setting(
+            (str,),
+            "auto",
+            "how a pass updates per-pixel state in primitive order: "
+            "'fetch' (EXT_shader_framebuffer_fetch), 'interlock' (ARB_fragment_shader_interlock) "
+            "or 'auto'",
+            choices=("auto", "fetch", "interlock"),
+        ),
     }
 
     def __init__(self, settings, caps):
         super().__init__(settings, caps)
         self.order = ordering_backend(settings.get("ordering", "auto"), caps) if self.needs_ordering else None
         if self.needs_ordering and self.order is None:
-            raise UnsupportedMethodError(f"method '{self.id}' with ordering '{settings.get('ordering')}' cannot run "
-                                         f"on {caps.renderer}: the device lacks that extension")
+            raise UnsupportedMethodError(
+                f"method '{self.id}' with ordering '{settings.get('ordering')}' cannot run "
+                f"on {caps.renderer}: the device lacks that extension"
+            )
         self._phase = "composite"
         self._shading: dict = {}
         self._tex: dict = {}
@@ -86,8 +98,10 @@ class PeelingMethod(TransparencyMethod):
     def unsupported_reason(cls, caps) -> str | None:
         """Peeling needs ordered per-pixel read-modify-write (framebuffer fetch or fragment shader interlock)."""
         if cls.needs_ordering and ordering_backend("auto", caps) is None:
-            return ("needs GL_EXT_shader_framebuffer_fetch or GL_ARB_fragment_shader_interlock to keep the "
-                    "exact (depth, tie) test of each peeling pass in primitive order")
+            return (
+                "needs GL_EXT_shader_framebuffer_fetch or GL_ARB_fragment_shader_interlock to keep the "
+                "exact (depth, tie) test of each peeling pass in primitive order"
+            )
         return None
 
     # ------------------------------------------------------------------ storage
@@ -165,9 +179,16 @@ class PeelingMethod(TransparencyMethod):
         """Run one compute step of peeling/step.comp.j2 over every pixel."""
         slots = self.slot_names()
         prog = frame.renderer.shaders.compute(
-            "peeling/step.comp.j2", method=self.step_method, step=name, has_back=self.has_back,
-            has_range=self.has_range, slot_formats=[self._image_format(n) for n in slots],
-            slot_clear=self.slot_clears(), **self.step_vars(), **self._shading)
+            "peeling/step.comp.j2",
+            method=self.step_method,
+            step=name,
+            has_back=self.has_back,
+            has_range=self.has_range,
+            slot_formats=[self._image_format(n) for n in slots],
+            slot_clear=self.slot_clears(),
+            **self.step_vars(),
+            **self._shading,
+        )
         frame.set_frame_uniforms(prog)
         frame.bind_lights(prog)
         if "gua_threshold" in prog:
@@ -203,8 +224,9 @@ class PeelingMethod(TransparencyMethod):
         self._counters.bind_to_storage_buffer(4)
         return {"gua_peel_bounds": UNIT_BOUNDS, "gua_peel_opaque": UNIT_OPAQUE, "gua_peel_range": UNIT_RANGE}
 
-    def geometry_pass(self, frame, phase: str, slots: list[str], draws=None, uniforms: dict | None = None,
-                      per_program=None) -> None:
+    def geometry_pass(
+        self, frame, phase: str, slots: list[str], draws=None, uniforms: dict | None = None, per_program=None
+    ) -> None:
         """One pass over the transparent draws (or `draws`) that updates the slots in primitive order."""
         mgl = frame.renderer.moderngl
         ctx = frame.ctx
@@ -232,7 +254,7 @@ class PeelingMethod(TransparencyMethod):
         ctx.disable(mgl.DEPTH_TEST | mgl.CULL_FACE)
         ctx.enable(mgl.BLEND)
         ctx.blend_equation = mgl.FUNC_ADD
-        ctx.blend_func = (mgl.ONE_MINUS_DST_ALPHA, mgl.ONE)   # front-to-back "under", premultiplied
+        ctx.blend_func = (mgl.ONE_MINUS_DST_ALPHA, mgl.ONE)  # front-to-back "under", premultiplied
         self._phase = "composite_range"
         try:
             frame.draw_transparent(self._common_uniforms(frame), per_program=frame.bind_lights, order=draws)
@@ -250,8 +272,10 @@ class PeelingMethod(TransparencyMethod):
 
     def _truncate(self, left: int) -> None:
         self._stats["truncated"] = left
-        self.warn(f"{self.id}: max_passes={self.settings['max_passes']} stopped peeling with {left} fragments "
-                  "(at least one more layer) not peeled; the image misses them")
+        self.warn(
+            f"{self.id}: max_passes={self.settings['max_passes']} stopped peeling with {left} fragments "
+            "(at least one more layer) not peeled; the image misses them"
+        )
 
     def warn(self, text: str) -> None:
         """Add a warning to this frame's stats."""
@@ -280,9 +304,12 @@ class PeelingMethod(TransparencyMethod):
         """Phase of the pass being drawn (part of the program key); geometry phases add their layout."""
         if self._phase == "composite":
             return {"peel_phase": "composite", "peel_back": self.has_back}
-        v = {"peel_phase": self._phase, "peel_order": self.order or "none",
-             "ord_formats": [self._image_format(n) for n in self.phase_slots(self._phase)],
-             "fragment_interlock": self.order == "interlock" and self._phase in ORDERED_PHASES}
+        v = {
+            "peel_phase": self._phase,
+            "peel_order": self.order or "none",
+            "ord_formats": [self._image_format(n) for n in self.phase_slots(self._phase)],
+            "fragment_interlock": self.order == "interlock" and self._phase in ORDERED_PHASES,
+        }
         if self._phase == "composite_range":
             v.update(self._shading)
         v.update(self.step_vars())
@@ -381,9 +408,10 @@ class DepthPeeling(NearestPayloadPeel):
             s["iterations"] += 1
             s["peeled"] += c["peeled"]
             s["saturated_pixels"] += c["saturated"]
-            left = c["in_range"] - c["peeled"]   # fragments this pass saw that are still to peel
+            left = c["in_range"] - c["peeled"]  # fragments this pass saw that are still to peel
             if left == 0:
                 break
+
 
 class DualDepthPeeling(DepthPeeling):
     """Dual depth peeling (Bavoil & Myers 2008): nearest and farthest layer per pass, front under, back over."""

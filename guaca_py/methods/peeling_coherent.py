@@ -21,6 +21,7 @@ order on exact (depth, tie) keys; the stencil is 8 bits like the paper's. More t
 updates in pass 1 (255 surfaces submitted in reverse order in front of s_n) saturate it: such
 pixels peel just s_n that iteration (exact, slower) and are counted in stats and warnings.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -34,10 +35,10 @@ ST_ALWAYS, ST_LESS, ST_GREATER, ST_EQUAL = 0, 1, 2, 3
 OP_KEEP, OP_ZERO, OP_INCR, OP_DECR, OP_INVERT = 0, 1, 2, 3, 4
 # pass: (depth func, stencil func, stencil ref, (sfail, zfail, zpass), store payload on zpass)
 COUNTING_PASSES = {
-    1: (DEPTH_LESS, ST_ALWAYS, 0, (OP_KEEP, OP_KEEP, OP_INCR), True),          # count z-buffer updates
-    2: (DEPTH_LESS, ST_LESS, 1, (OP_KEEP, OP_KEEP, OP_DECR), True),            # count back down: z_min_prev
+    1: (DEPTH_LESS, ST_ALWAYS, 0, (OP_KEEP, OP_KEEP, OP_INCR), True),  # count z-buffer updates
+    2: (DEPTH_LESS, ST_LESS, 1, (OP_KEEP, OP_KEEP, OP_DECR), True),  # count back down: z_min_prev
     3: (DEPTH_GREATER, ST_GREATER, 128, (OP_KEEP, OP_INVERT, OP_INCR), False),  # length of the in-order run
-    4: (DEPTH_LESS, ST_EQUAL, 255, (OP_INCR, OP_KEEP, OP_KEEP), True),         # skip the run: z_min_post
+    4: (DEPTH_LESS, ST_EQUAL, 255, (OP_INCR, OP_KEEP, OP_KEEP), True),  # skip the run: z_min_post
 }
 PASSES_PER_ITERATION = 5
 
@@ -102,9 +103,13 @@ class HybridLayerPeeling(NearestPayloadPeel):
     has_range = True
     SETTINGS = {
         **PeelingMethod.SETTINGS,
-        "sorted_set": Setting((str,), "auto", "which draws are composited as sorted geometry: 'auto' (the "
-                              "longest front-to-back chain of planar draws) or 'none' (plain depth peeling)",
-                              choices=("auto", "none")),
+        "sorted_set": Setting(
+            (str,),
+            "auto",
+            "which draws are composited as sorted geometry: 'auto' (the "
+            "longest front-to-back chain of planar draws) or 'none' (plain depth peeling)",
+            choices=("auto", "none"),
+        ),
     }
 
     def split(self, frame) -> tuple[list, list]:
@@ -113,8 +118,10 @@ class HybridLayerPeeling(NearestPayloadPeel):
         if self.settings["sorted_set"] == "none":
             return [], draws
         # vertex displacement moves geometry on the GPU: the CPU interval would not bound it
-        ivs = [view_depth_interval(d, frame.view) if is_planar(d) and not d.material.methods.get("displacement")
-               else None for d in draws]
+        ivs = [
+            view_depth_interval(d, frame.view) if is_planar(d) and not d.material.methods.get("displacement") else None
+            for d in draws
+        ]
         chain = set(sorted_chain(ivs))
         return [d for i, d in enumerate(draws) if i in chain], [d for i, d in enumerate(draws) if i not in chain]
 
@@ -160,8 +167,13 @@ class CoherentLayerPeeling(PeelingMethod):
 
     def texture_specs(self):
         """Plus the emulated depth (key) and 8-bit stencil, and the upper surface's payload."""
-        return {**super().texture_specs(), "depth": (4, "u4"), "stencil": (1, "u4"),
-                "payload0": (4, "u4"), "payload1": (4, "u4")}
+        return {
+            **super().texture_specs(),
+            "depth": (4, "u4"),
+            "stencil": (1, "u4"),
+            "payload0": (4, "u4"),
+            "payload1": (4, "u4"),
+        }
 
     def slot_names(self):
         """State the counting passes read and write in primitive order."""
@@ -174,9 +186,21 @@ class CoherentLayerPeeling(PeelingMethod):
     def _counting_pass(self, frame, n: int) -> None:
         """Counting pass n (1-4) with the paper's depth/stencil state, then its step."""
         depth, sfunc, ref, (sfail, zfail, zpass), capture = COUNTING_PASSES[n]
-        self.geometry_pass(frame, "stencil", self.slot_names(), uniforms={
-            "gua_cl_pass": n, "gua_cl_depth_func": depth, "gua_cl_stencil_func": sfunc, "gua_cl_stencil_ref": ref,
-            "gua_cl_op_sfail": sfail, "gua_cl_op_zfail": zfail, "gua_cl_op_zpass": zpass, "gua_cl_capture": capture})
+        self.geometry_pass(
+            frame,
+            "stencil",
+            self.slot_names(),
+            uniforms={
+                "gua_cl_pass": n,
+                "gua_cl_depth_func": depth,
+                "gua_cl_stencil_func": sfunc,
+                "gua_cl_stencil_ref": ref,
+                "gua_cl_op_sfail": sfail,
+                "gua_cl_op_zfail": zfail,
+                "gua_cl_op_zpass": zpass,
+                "gua_cl_capture": capture,
+            },
+        )
         self.step(frame, f"coherent_after_{n}")
 
     def render_transparent(self, frame) -> None:
@@ -210,6 +234,8 @@ class CoherentLayerPeeling(PeelingMethod):
             if left == 0:
                 break
         if s["stencil_overflow_pixels"]:
-            self.warn(f"{self.id}: 8-bit stencil overflow: more than 255 out-of-order surfaces in front of the "
-                      f"nearest one ({s['stencil_overflow_pixels']} pixel-iterations); those pixels peeled one "
-                      "layer per iteration instead (exact, more passes)")
+            self.warn(
+                f"{self.id}: 8-bit stencil overflow: more than 255 out-of-order surfaces in front of the "
+                f"nearest one ({s['stencil_overflow_pixels']} pixel-iterations); those pixels peeled one "
+                "layer per iteration instead (exact, more passes)"
+            )

@@ -13,13 +13,14 @@ The pool is the only storage that can run out. Where it drops a fragment, the st
 slots in front of the nearest dropped depth (exact); the rest is peeled again next pass. With
 pool_mb 'auto' the pool then grows to the pass's need, so the next pass cannot overflow.
 """
+
 from __future__ import annotations
 
 from ..pipeline.settings import Setting
 from .peeling import PeelingMethod
 
-NODE_BYTES = 32          # 8 payload words
-INF_BITS = 0x7F800000    # +inf: "nothing dropped" in the per-pixel dropped-depth words
+NODE_BYTES = 32  # 8 payload words
+INF_BITS = 0x7F800000  # +inf: "nothing dropped" in the per-pixel dropped-depth words
 
 
 def _pool(v) -> str | None:
@@ -43,8 +44,9 @@ class MultiLayerDepthPeeling(PeelingMethod):
     SETTINGS = {
         **PeelingMethod.SETTINGS,
         "layers_per_pass": Setting((int,), 4, "M: layers kept per pixel and pass", check=_layers),
-        "pool_mb": Setting((str, int, float), "auto", "node pool in MB, or 'auto' (grows to a pass's need)",
-                           check=_pool),
+        "pool_mb": Setting(
+            (str, int, float), "auto", "node pool in MB, or 'auto' (grows to a pass's need)", check=_pool
+        ),
         "max_pool_mb": Setting((int, float), 512, "largest pool 'auto' may grow to"),
         "max_steps": Setting((int,), 1024, "bound on swap attempts per insertion (guards against livelock)"),
     }
@@ -79,8 +81,7 @@ class MultiLayerDepthPeeling(PeelingMethod):
             self._pixels = pixels
             self._slots = ctx.buffer(reserve=pixels * self.layers * 4)
             self._slots.clear()
-            self._dropped = ctx.buffer(data=bytes(memoryview(
-                (INF_BITS).to_bytes(4, "little") * pixels)))
+            self._dropped = ctx.buffer(data=bytes(memoryview((INF_BITS).to_bytes(4, "little") * pixels)))
         if self._nodes is None or self.capacity != capacity:
             if self._nodes is not None:
                 self._nodes.release()
@@ -119,13 +120,20 @@ class MultiLayerDepthPeeling(PeelingMethod):
             if self.cap_reached():
                 self._truncate(left)
                 break
-            self.reset_counters(alloc=1)   # node 0 is the null handle
+            self.reset_counters(alloc=1)  # node 0 is the null handle
             self._bind_step_storage(frame)
             # a pool that can no longer grow cuts each pass at the nearest depth it dropped there
             can_grow = self.settings["pool_mb"] == "auto" and self.capacity < max_nodes
-            self.geometry_pass(frame, "multilayer", [], uniforms={
-                "gua_ml_capacity": self.capacity, "gua_ml_max_steps": int(self.settings["max_steps"]),
-                "gua_ml_cut": not can_grow})
+            self.geometry_pass(
+                frame,
+                "multilayer",
+                [],
+                uniforms={
+                    "gua_ml_capacity": self.capacity,
+                    "gua_ml_max_steps": int(self.settings["max_steps"]),
+                    "gua_ml_cut": not can_grow,
+                },
+            )
             self.step(frame, "multilayer")
             c = self.read_counters()
             s["iterations"] += 1
@@ -148,12 +156,16 @@ class MultiLayerDepthPeeling(PeelingMethod):
                     s["pool_grown"] += 1
                 elif stalled >= 3:
                     s["truncated"] = left
-                    self.warn(f"{self.id}: the node pool ({self.capacity - 1} nodes) is too small to make progress; "
-                              f"{left} fragments not peeled (raise transparency.pool_mb or use 'auto')")
+                    self.warn(
+                        f"{self.id}: the node pool ({self.capacity - 1} nodes) is too small to make progress; "
+                        f"{left} fragments not peeled (raise transparency.pool_mb or use 'auto')"
+                    )
                     break
         if s["pool_overflow"] and self.settings["pool_mb"] != "auto":
-            self.warn(f"{self.id}: node pool overflowed ({s['pool_overflow']} nodes lacking, "
-                      f"{self.capacity - 1} nodes); those layers were peeled in later passes")
+            self.warn(
+                f"{self.id}: node pool overflowed ({s['pool_overflow']} nodes lacking, "
+                f"{self.capacity - 1} nodes); those layers were peeled in later passes"
+            )
         if s["guard_abandoned"]:
             self.warn(f"{self.id}: {s['guard_abandoned']} insertions hit max_steps; peeled again in later passes")
 

@@ -1,4 +1,5 @@
 """PreSortLF / PreSortLF*: sorted lock-free A-buffer insertion (optionally with early termination)."""
+
 from __future__ import annotations
 
 import math
@@ -8,7 +9,7 @@ import numpy as np
 from ..pipeline.settings import Setting
 from .base import TransparencyMethod
 
-NODE_PAYLOAD_BYTES = 32          # depth + 7 payload words, see abuffer/layout.glsl.j2
+NODE_PAYLOAD_BYTES = 32  # depth + 7 payload words, see abuffer/layout.glsl.j2
 COUNTERS = ("alloc", "overflow", "et_dropped", "et_culled", "stored", "guard")
 _INT64_EXT = "#extension GL_ARB_gpu_shader_int64 : require\n#extension GL_NV_shader_atomic_int64 : require\n"
 
@@ -30,7 +31,9 @@ class PreSortLF(TransparencyMethod):
     counters: tuple[str, ...] = COUNTERS  # counter words of the counter buffer, in layout order
     extra_slots = 0  # per-pixel link words after the node links (second list heads, locks)
     SETTINGS = {
-        "budget_mb": Setting((str, int, float), "auto", "node pool size in MB, or 'auto' (grow to the need)", check=_budget),
+        "budget_mb": Setting(
+            (str, int, float), "auto", "node pool size in MB, or 'auto' (grow to the need)", check=_budget
+        ),
         "max_regrow": Setting((int,), 2, "re-renders allowed to grow an 'auto' pool after overflow"),
         "max_steps": Setting((int,), 4096, "bound on list steps per insertion (guards against livelock)"),
     }
@@ -42,9 +45,9 @@ class PreSortLF(TransparencyMethod):
         self.node_bytes = NODE_PAYLOAD_BYTES + self.link_bytes
         self._links = self._nodes = self._counters = self._cull = None
         self._pixels = 0
-        self.capacity = 0   # nodes in the pool, node 0 included
+        self.capacity = 0  # nodes in the pool, node 0 included
         self.regrown = 0
-        self._want = 0      # pool size requested for the next prepare()
+        self._want = 0  # pool size requested for the next prepare()
         self._last = {}
 
     # ------------------------------------------------------------------ storage
@@ -101,25 +104,35 @@ class PreSortLF(TransparencyMethod):
         frame.ctx.depth_func = "<"
         self._bind()
         self._cull.bind_to_image(0, read=True, write=True)
-        frame.draw_transparent({"gua_ab_capacity": self.capacity, "gua_pixel_count": frame.pixel_count,
-                                "gua_ab_threshold": self.threshold()})
+        frame.draw_transparent(
+            {
+                "gua_ab_capacity": self.capacity,
+                "gua_pixel_count": frame.pixel_count,
+                "gua_ab_threshold": self.threshold(),
+            }
+        )
         g["fbo"].depth_mask = True
 
     def finish(self, frame) -> bool:
         """Read counters; with an 'auto' budget, grow the pool to the need and ask for a re-render."""
         c = dict(zip(self.counters, np.frombuffer(self._counters.read(), dtype=np.uint32).tolist()))
-        requested = c["alloc"] - 1              # node 0 is the null node
+        requested = c["alloc"] - 1  # node 0 is the null node
         used = min(requested, self.capacity - 1)
         frame.stats["fragments"] = {
-            "stored": c["stored"], "overflow": c["overflow"], "et_dropped": c["et_dropped"],
-            "et_culled": c["et_culled"], "early_termination_culled": c["et_dropped"] + c["et_culled"],
-            "guard_abandoned": c["guard"], "nodes_requested": requested,
+            "stored": c["stored"],
+            "overflow": c["overflow"],
+            "et_dropped": c["et_dropped"],
+            "et_culled": c["et_culled"],
+            "early_termination_culled": c["et_dropped"] + c["et_culled"],
+            "guard_abandoned": c["guard"],
+            "nodes_requested": requested,
         }
         self._last = {"used_nodes": used}
         if c["overflow"]:
             frame.stats.setdefault("warnings", []).append(
                 f"A-buffer overflow: {c['overflow']} fragments dropped (pool {self.capacity - 1} nodes, "
-                f"frame asked for {requested}); raise transparency.budget_mb or use 'auto'")
+                f"frame asked for {requested}); raise transparency.budget_mb or use 'auto'"
+            )
         if c["guard"]:
             frame.stats.setdefault("warnings", []).append(f"{c['guard']} insertions hit max_steps and were dropped")
         auto = self.settings["budget_mb"] == "auto"
@@ -159,8 +172,11 @@ class PreSortLF(TransparencyMethod):
     def bind_composite(self, frame, program) -> None:
         """The composite walks the same lists."""
         self._bind()
-        for name, value in (("gua_ab_capacity", self.capacity), ("gua_pixel_count", frame.pixel_count),
-                            ("gua_ab_threshold", self.threshold())):
+        for name, value in (
+            ("gua_ab_capacity", self.capacity),
+            ("gua_pixel_count", frame.pixel_count),
+            ("gua_ab_threshold", self.threshold()),
+        ):
             if name in program:
                 program[name] = value
 
@@ -173,11 +189,13 @@ class PreSortLF(TransparencyMethod):
         if self._links is None and not self._pixels:
             return {}
         used = self._last.get("used_nodes", 0)
-        return {"abuffer_heads": self._pixels * self.link_bytes,
-                "abuffer_pool": self.capacity * self.node_bytes,
-                "abuffer_pool_used": (used + 1) * self.node_bytes,
-                "abuffer_cull_depth": self._pixels * 4,
-                "abuffer_node_bytes": self.node_bytes}
+        return {
+            "abuffer_heads": self._pixels * self.link_bytes,
+            "abuffer_pool": self.capacity * self.node_bytes,
+            "abuffer_pool_used": (used + 1) * self.node_bytes,
+            "abuffer_cull_depth": self._pixels * 4,
+            "abuffer_node_bytes": self.node_bytes,
+        }
 
     def release(self) -> None:
         """Free all buffers."""

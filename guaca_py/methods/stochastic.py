@@ -10,6 +10,7 @@ fraction of samples not covered in front of it, and accumulates alpha*vis*color,
 the revealage prod(1 - alpha); the composite scales the estimated color by the exact coverage
 (the paper's alpha correction) or, with `alpha_correction: false`, uses the raw estimate.
 """
+
 from __future__ import annotations
 
 from ..pipeline.settings import Setting
@@ -92,8 +93,11 @@ class StochasticTransparency(ForwardBlendMethod):
 
     def template_vars(self) -> dict:
         """Sample count and correction on top of the shared variables."""
-        return {**super().template_vars(), "samples": self.samples,
-                "approx_normalize": bool(self.settings["alpha_correction"])}
+        return {
+            **super().template_vars(),
+            "samples": self.samples,
+            "approx_normalize": bool(self.settings["alpha_correction"]),
+        }
 
     def fragment_template(self) -> str:
         """Both passes live in one template, selected by the phase."""

@@ -1,4 +1,5 @@
 """Render pass interface: declares what it reads and writes by name, then executes."""
+
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, ClassVar
@@ -26,7 +27,7 @@ class Pass:
         """The moderngl context."""
         return self.renderer.ctx
 
-    def execute(self, frame: "FrameState") -> None:
+    def execute(self, frame: FrameState) -> None:
         """Run the pass for one frame."""
         raise NotImplementedError
 
@@ -44,14 +45,18 @@ class FullscreenPass(Pass):
         super().__init__(renderer, settings)
         self._target = None
 
-    def program(self, frame: "FrameState"):
+    def program(self, frame: FrameState):
         """The compiled program of this pass (templated on its settings)."""
         return self.renderer.shaders.program(
             (self.name, tuple(sorted(self.settings.items()))),
-            {"vertex_shader": ("composite/fullscreen.vert.j2", {}),
-             "fragment_shader": (self.template, dict(self.settings))}, label=self.name)
+            {
+                "vertex_shader": ("composite/fullscreen.vert.j2", {}),
+                "fragment_shader": (self.template, dict(self.settings)),
+            },
+            label=self.name,
+        )
 
-    def target(self, frame: "FrameState"):
+    def target(self, frame: FrameState):
         """The output framebuffer, reallocated on resolution change."""
         size = (frame.width, frame.height)
         if self._target is None or self._target.size != size:
@@ -62,7 +67,7 @@ class FullscreenPass(Pass):
             self._target = self.ctx.framebuffer(color_attachments=[tex])
         return self._target
 
-    def run_fullscreen(self, frame: "FrameState", prog, inputs: dict) -> object:
+    def run_fullscreen(self, frame: FrameState, prog, inputs: dict) -> object:
         """Bind input textures to units, draw, return the output texture."""
         fbo = self.target(frame)
         fbo.use()

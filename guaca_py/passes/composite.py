@@ -1,4 +1,5 @@
 """Shade-composite pass: shades and blends transparent and opaque fragments front to back."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -19,14 +20,22 @@ class CompositePass(FullscreenPass):
         r = self.renderer
         method = frame.resources.get("transparent")
         lights = frame.shading_vars()
-        tvars = dict(has_transparency=method is not None, **lights,
-                     method_extensions=method.extensions() if method else "",
-                     method_resolve_template=method.resolve_template() if method else "",
-                     **(method.template_vars() if method else {}))
+        tvars = dict(
+            has_transparency=method is not None,
+            **lights,
+            method_extensions=method.extensions() if method else "",
+            method_resolve_template=method.resolve_template() if method else "",
+            **(method.template_vars() if method else {}),
+        )
         key = ("composite", tuple(sorted((k, str(v)) for k, v in tvars.items())), method.id if method else None)
-        return r.shaders.program(key, {"vertex_shader": ("composite/fullscreen.vert.j2", {}),
-                                       "fragment_shader": ("composite/shade_composite.frag.j2", tvars)},
-                                 label="composite")
+        return r.shaders.program(
+            key,
+            {
+                "vertex_shader": ("composite/fullscreen.vert.j2", {}),
+                "fragment_shader": ("composite/shade_composite.frag.j2", tvars),
+            },
+            label="composite",
+        )
 
     def execute(self, frame) -> None:
         """Shade every pixel; writes frame.resources['hdr']."""
@@ -42,8 +51,16 @@ class CompositePass(FullscreenPass):
         prog["gua_threshold"] = threshold
         prog["gua_background"].write(np.asarray(frame.scene.background, dtype=np.float32).tobytes())
         g = frame.resources["gbuffer"]
-        tex = self.run_fullscreen(frame, prog, {"gbuf_albedo": g["albedo"], "gbuf_normal": g["normal"],
-                                                "gbuf_material": g["material"], "gbuf_depth": g["depth"]})
+        tex = self.run_fullscreen(
+            frame,
+            prog,
+            {
+                "gbuf_albedo": g["albedo"],
+                "gbuf_normal": g["normal"],
+                "gbuf_material": g["material"],
+                "gbuf_depth": g["depth"],
+            },
+        )
         if method is not None:
             method.after_composite(frame)
         frame.resources["hdr"] = tex

@@ -1,4 +1,5 @@
 """Debug post passes: light count per tile and transparent depth complexity, as heat maps with a legend."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -7,11 +8,25 @@ from ..pipeline.settings import Setting, positive
 from .base import FullscreenPass
 
 # Evenly spaced anchors of the heat scale, 0 (black) to max (red); the GLSL interpolates them linearly.
-HEAT_ANCHORS = np.array([[0.0, 0.0, 0.0], [0.16, 0.08, 0.55], [0.0, 0.42, 0.95], [0.0, 0.78, 0.62],
-                         [0.55, 0.9, 0.1], [1.0, 0.78, 0.0], [0.95, 0.12, 0.05]], dtype=np.float32)
+HEAT_ANCHORS = np.array(
+    [
+        [0.0, 0.0, 0.0],
+        [0.16, 0.08, 0.55],
+        [0.0, 0.42, 0.95],
+        [0.0, 0.78, 0.62],
+        [0.55, 0.9, 0.1],
+        [1.0, 0.78, 0.0],
+        [0.95, 0.12, 0.05],
+    ],
+    dtype=np.float32,
+)
 # resolve template -> per-pixel lists in abuffer/layout.glsl.j2 that it walks
-_LIST_LAYOUTS = {"abuffer/resolve_sorted.glsl.j2": 1, "abuffer/resolve_post_sort.glsl.j2": 1,
-                 "abuffer/resolve_post_merge.glsl.j2": 1, "abuffer/resolve_two_lists.glsl.j2": 2}
+_LIST_LAYOUTS = {
+    "abuffer/resolve_sorted.glsl.j2": 1,
+    "abuffer/resolve_post_sort.glsl.j2": 1,
+    "abuffer/resolve_post_merge.glsl.j2": 1,
+    "abuffer/resolve_two_lists.glsl.j2": 2,
+}
 
 
 def heat_color(value: float, max_value: int) -> np.ndarray:
@@ -34,8 +49,10 @@ def depth_complexity_unsupported(method) -> str | None:
     if method is None:
         return None
     if not isinstance(method, PreSortLF) or method.resolve_template() not in _LIST_LAYOUTS:
-        return (f"method '{method.id}' keeps no per-pixel A-buffer lists to count (supported: the "
-                f"presort_lf family, post_sort, post_merge16)")
+        return (
+            f"method '{method.id}' keeps no per-pixel A-buffer lists to count (supported: the "
+            f"presort_lf family, post_sort, post_merge16)"
+        )
     return None
 
 
@@ -61,16 +78,23 @@ class DebugLightCountPass(_HeatView):
 
     name = "debug_light_count"
     reads = ("light_grid",)
-    SETTINGS = {"max": Setting((int,), 64, "light count at the top of the color scale", check=positive),
-                "legend": Setting((bool,), True, "draw the color bar with tick marks and labels")}
+    SETTINGS = {
+        "max": Setting((int,), 64, "light count at the top of the color scale", check=positive),
+        "legend": Setting((bool,), True, "draw the color bar with tick marks and labels"),
+    }
 
     def program(self, frame):
         """Program variant for grid / no grid."""
         grid = frame.resources["light_grid"]["grid"] is not None
         tvars = {"light_grid": grid, "heat_anchors": len(HEAT_ANCHORS)}
         return self.renderer.shaders.program(
-            (self.name, grid), {"vertex_shader": ("composite/fullscreen.vert.j2", {}),
-                                "fragment_shader": ("post/debug_light_count.frag.j2", tvars)}, label=self.name)
+            (self.name, grid),
+            {
+                "vertex_shader": ("composite/fullscreen.vert.j2", {}),
+                "fragment_shader": ("post/debug_light_count.frag.j2", tvars),
+            },
+            label=self.name,
+        )
 
     def execute(self, frame) -> None:
         """Draw the light-count heat map."""
@@ -83,8 +107,10 @@ class DebugLightCountPass(_HeatView):
         info = {"max_shown": int(self.settings["max"])}
         if lg["grid"] is not None:
             counts = self.renderer.pass_named("light_culling").grid_bits().sum(axis=0)
-            info.update(tile_max=int(counts.max()) if counts.size else 0,
-                        tile_mean=round(float(counts.mean()), 3) if counts.size else 0.0)
+            info.update(
+                tile_max=int(counts.max()) if counts.size else 0,
+                tile_mean=round(float(counts.mean()), 3) if counts.size else 0.0,
+            )
         else:
             info.update(tile_max=lg["count"], tile_mean=float(lg["count"]))
         self._finish(frame, tex, info)
@@ -95,21 +121,33 @@ class DebugDepthComplexityPass(_HeatView):
 
     name = "debug_depth_complexity"
     reads = ("transparent",)
-    SETTINGS = {"max": Setting((int,), 32, "fragment count at the top of the color scale", check=positive),
-                "legend": Setting((bool,), True, "draw the color bar with tick marks and labels")}
+    SETTINGS = {
+        "max": Setting((int,), 32, "fragment count at the top of the color scale", check=positive),
+        "legend": Setting((bool,), True, "draw the color bar with tick marks and labels"),
+    }
 
     def program(self, frame):
         """Program variant for the frame's transparency method (its list layout and extensions)."""
         method = frame.resources.get("transparent")
-        tvars = {"heat_anchors": len(HEAT_ANCHORS), "has_transparency": method is not None,
-                 "method_extensions": "", "walk_limit": 1 << 16, "count_lists": 1}
+        tvars = {
+            "heat_anchors": len(HEAT_ANCHORS),
+            "has_transparency": method is not None,
+            "method_extensions": "",
+            "walk_limit": 1 << 16,
+            "count_lists": 1,
+        }
         if method is not None:
             tvars.update(method.template_vars())
             tvars.update(method_extensions=method.extensions(), count_lists=_LIST_LAYOUTS[method.resolve_template()])
         key = (self.name, method.id if method else None, tuple(sorted((k, str(v)) for k, v in tvars.items())))
         return self.renderer.shaders.program(
-            key, {"vertex_shader": ("composite/fullscreen.vert.j2", {}),
-                  "fragment_shader": ("post/debug_depth_complexity.frag.j2", tvars)}, label=self.name)
+            key,
+            {
+                "vertex_shader": ("composite/fullscreen.vert.j2", {}),
+                "fragment_shader": ("post/debug_depth_complexity.frag.j2", tvars),
+            },
+            label=self.name,
+        )
 
     def execute(self, frame) -> None:
         """Draw the depth-complexity heat map, or report why the method's storage cannot be read."""
@@ -125,9 +163,22 @@ class DebugDepthComplexityPass(_HeatView):
         if method is not None:
             method.bind_composite(frame, prog)
         tex = self.run_fullscreen(frame, prog, {})
-        self._finish(frame, tex, {"supported": True, "max_shown": int(self.settings["max"]),
-                                  "stored": int(frame.stats.get("fragments", {}).get("stored", 0))})
+        self._finish(
+            frame,
+            tex,
+            {
+                "supported": True,
+                "max_shown": int(self.settings["max"]),
+                "stored": int(frame.stats.get("fragments", {}).get("stored", 0)),
+            },
+        )
 
 
-__all__ = ["DebugLightCountPass", "DebugDepthComplexityPass", "HEAT_ANCHORS", "heat_color", "legend_rows",
-           "depth_complexity_unsupported"]
+__all__ = [
+    "DebugLightCountPass",
+    "DebugDepthComplexityPass",
+    "HEAT_ANCHORS",
+    "heat_color",
+    "legend_rows",
+    "depth_complexity_unsupported",
+]

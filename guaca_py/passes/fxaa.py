@@ -1,4 +1,5 @@
 """FXAA post pass on display-encoded color."""
+
 from __future__ import annotations
 
 from ..pipeline.settings import NUMBER, Setting, unit_interval
@@ -12,8 +13,9 @@ class FxaaPass(FullscreenPass):
     reads = ("ldr",)
     writes = ("ldr",)
     template = "post/fxaa.frag.j2"
-    SETTINGS = {"edge_threshold": Setting(NUMBER, 0.125, "relative luma contrast that counts as an edge",
-                                          check=unit_interval)}
+    SETTINGS = {
+        "edge_threshold": Setting(NUMBER, 0.125, "relative luma contrast that counts as an edge", check=unit_interval)
+    }
 
     def execute(self, frame) -> None:
         """Anti-alias the display image."""

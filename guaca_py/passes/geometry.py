@@ -1,4 +1,5 @@
 """Geometry pass: opaque fragments to the G-buffer, transparent ones to the method's storage."""
+
 from __future__ import annotations
 
 from .base import Pass
@@ -39,9 +40,14 @@ class GeometryPass(Pass):
         self.ctx.depth_func = "<"
         fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         frame.draw_opaque()
-        g = {"fbo": fbo, "depth_only": self._depth_only, "albedo": fbo.color_attachments[0],
-             "normal": fbo.color_attachments[1], "material": fbo.color_attachments[2],
-             "depth": fbo.depth_attachment}
+        g = {
+            "fbo": fbo,
+            "depth_only": self._depth_only,
+            "albedo": fbo.color_attachments[0],
+            "normal": fbo.color_attachments[1],
+            "material": fbo.color_attachments[2],
+            "depth": fbo.depth_attachment,
+        }
         frame.resources["gbuffer"] = g
         frame.stats.setdefault("memory", {})["gbuffer"] = frame.pixel_count * (3 * 8 + 4)
         method = self.renderer.method

@@ -1,4 +1,5 @@
 """Light-culling pass: frustum-culls lights on the CPU and builds the per-tile light bit grid on the GPU."""
+
 from __future__ import annotations
 
 import math
@@ -12,13 +13,13 @@ from .light_grid_cpu import compare_grids, exact_tile_lights, grid_shape, unpack
 from .lights import LIGHT_TYPE_CODE, light_table, pack_lights, visible_mask
 
 MODES = ("auto", "conservative", "fallback", "off")
-ARC_SEGMENTS = 8        # proxy profile: segments of the range sphere's arc
-RING_SEGMENTS = 16      # proxy: sides of the circumscribed polygon around the light's axis
+ARC_SEGMENTS = 8  # proxy profile: segments of the range sphere's arc
+RING_SEGMENTS = 16  # proxy: sides of the circumscribed polygon around the light's axis
 # Largest distance of a proxy vertex from the light, in units of its range.
 PROXY_EXTENT = 1.0 / (math.cos(math.pi / RING_SEGMENTS) * math.cos(math.pi / (2 * ARC_SEGMENTS)))
 PROXY_VERTICES = (ARC_SEGMENTS + 2) * RING_SEGMENTS * 6
-LIGHT_GRID_UNIT = 31    # texture unit of the grid: above the G-buffer (0-3), method (4-7) and material (8+) units
-_PLANE_MARGIN = 1e-3    # relative: proxies this close to the near/far plane count as crossing it
+LIGHT_GRID_UNIT = 31  # texture unit of the grid: above the G-buffer (0-3), method (4-7) and material (8+) units
+_PLANE_MARGIN = 1e-3  # relative: proxies this close to the near/far plane count as crossing it
 
 
 def _tile_size(v) -> str | None:
@@ -44,11 +45,17 @@ class LightCullingPass(Pass):
         "mode": Setting((str,), "auto", "light grid construction", choices=MODES),
         "tile_size": Setting((int,), 16, "tile edge in pixels", check=_tile_size),
         "max_lights": Setting((int,), 1024, "most visible lights a frame may use", check=positive),
-        "tile_bits": Setting((str,), "auto", "how composite reads a tile's light bits: 'cache' (once per pixel "
-                             "into a local array), 'fetch' (per shaded fragment, from the texture cache) or "
-                             "'auto'", choices=("auto", "cache", "fetch")),
-        "report_accuracy": Setting((bool,), False,
-                                   "compare the grid with the exact CPU answer every frame (slow; stats)"),
+        "tile_bits": Setting(
+            (str,),
+            "auto",
+            "how composite reads a tile's light bits: 'cache' (once per pixel "
+            "into a local array), 'fetch' (per shaded fragment, from the texture cache) or "
+            "'auto'",
+            choices=("auto", "cache", "fetch"),
+        ),
+        "report_accuracy": Setting(
+            (bool,), False, "compare the grid with the exact CPU answer every frame (slow; stats)"
+        ),
     }
 
     def __init__(self, renderer, settings):
@@ -56,7 +63,7 @@ class LightCullingPass(Pass):
         self._buffer = self._everywhere = self._grid = self._fbo = None
         self._grid_key = None
         self.layers_allocated = 1
-        self.packed_lights: list = []     # lights in bit order of the last frame
+        self.packed_lights: list = []  # lights in bit order of the last frame
         self._raw_gl = None
         self._vaos: dict = {}
         self.mode, self.mode_note = self._resolve_mode(settings["mode"], renderer.caps)
@@ -69,13 +76,18 @@ class LightCullingPass(Pass):
 
         if not caps.conservative_raster:
             if mode == "conservative":
-                raise DeviceError(f"light_culling mode 'conservative' needs GL_NV_conservative_raster, which "
-                                  f"{caps.renderer} does not have; use mode 'auto' or 'fallback'")
+                raise DeviceError(
+                    f"light_culling mode 'conservative' needs GL_NV_conservative_raster, which "
+                    f"{caps.renderer} does not have; use mode 'auto' or 'fallback'"
+                )
             return "fallback", "GL_NV_conservative_raster not available"
         gl = raw_gl()
         if gl is None or not gl.try_enable(GL_CONSERVATIVE_RASTERIZATION_NV):
-            reason = "no GL library to call glEnable through" if gl is None else \
-                "glEnable(GL_CONSERVATIVE_RASTERIZATION_NV) did not take effect"
+            reason = (
+                "no GL library to call glEnable through"
+                if gl is None
+                else "glEnable(GL_CONSERVATIVE_RASTERIZATION_NV) did not take effect"
+            )
             if mode == "conservative":
                 raise DeviceError(f"light_culling mode 'conservative': {reason} on {caps.renderer}")
             return "fallback", reason
@@ -84,8 +96,9 @@ class LightCullingPass(Pass):
         return "conservative", f"GL_NV_conservative_raster via {gl.source}"
 
     # ------------------------------------------------------------------ CPU side
-    def _order(self, table: np.ndarray, idx: np.ndarray, view: np.ndarray, near: float,
-               far: float) -> tuple[np.ndarray, int]:
+    def _order(
+        self, table: np.ndarray, idx: np.ndarray, view: np.ndarray, near: float, far: float
+    ) -> tuple[np.ndarray, int]:
         """Light rows `idx` in bit order: rasterized proxies first, then those reaching every tile; and the split.
 
         Proxies are clipped by the near and far planes, which removes their caps. A ray from the eye
@@ -140,7 +153,7 @@ class LightCullingPass(Pass):
         layers = -(-count // 32)
         self._ensure_grid(tw, th, layers)
         masks = np.zeros(self.layers_allocated, dtype=np.uint32)
-        for i in range(n_raster, count):            # lights that reach every tile
+        for i in range(n_raster, count):  # lights that reach every tile
             masks[i // 32] |= np.uint32(1 << (i % 32))
         self._everywhere.write(masks.tobytes())
         clear = self.renderer.shaders.compute("light_grid/clear.comp.j2")
@@ -175,12 +188,15 @@ class LightCullingPass(Pass):
     def _proxy_program(self):
         dilate = self.mode == "fallback"
         geo = {"arc_segments": ARC_SEGMENTS, "ring_segments": RING_SEGMENTS}
-        stages = {"vertex_shader": ("light_grid/proxy.vert.j2", geo),
-                  "fragment_shader": ("light_grid/mark.frag.j2", {"dilate": dilate})}
+        stages = {
+            "vertex_shader": ("light_grid/proxy.vert.j2", geo),
+            "fragment_shader": ("light_grid/mark.frag.j2", {"dilate": dilate}),
+        }
         if dilate:
             stages["geometry_shader"] = ("light_grid/dilate.geom.j2", {})
-        return self.renderer.shaders.program(("light_grid_proxy", dilate, ARC_SEGMENTS, RING_SEGMENTS), stages,
-                                             label="light grid proxies")
+        return self.renderer.shaders.program(
+            ("light_grid_proxy", dilate, ARC_SEGMENTS, RING_SEGMENTS), stages, label="light grid proxies"
+        )
 
     # ------------------------------------------------------------------ pass
     def execute(self, frame) -> None:
@@ -201,24 +217,44 @@ class LightCullingPass(Pass):
         if self.mode != "off":
             self._build_grid(frame, len(lights), n_raster)
             grid = self._grid
-        frame.resources["light_grid"] = {"buffer": self._buffer, "count": len(lights), "grid": grid,
-                                         "layers": -(-len(lights) // 32), "tile_size": self.settings["tile_size"]}
+        frame.resources["light_grid"] = {
+            "buffer": self._buffer,
+            "count": len(lights),
+            "grid": grid,
+            "layers": -(-len(lights) // 32),
+            "tile_size": self.settings["tile_size"],
+        }
         tw, th = grid_shape(frame.width, frame.height, self.settings["tile_size"])
-        stats = {"scene": len(frame.scene.lights), "visible": visible, "shaded": len(lights),
-                 "dropped_over_max": dropped, "mode": self.mode, "mode_requested": self.settings["mode"],
-                 "mode_reason": self.mode_note, "tile_size": self.settings["tile_size"]}
+        stats = {
+            "scene": len(frame.scene.lights),
+            "visible": visible,
+            "shaded": len(lights),
+            "dropped_over_max": dropped,
+            "mode": self.mode,
+            "mode_requested": self.settings["mode"],
+            "mode_reason": self.mode_note,
+            "tile_size": self.settings["tile_size"],
+        }
         mem = frame.stats.setdefault("memory", {})
         mem["lights"] = len(data)
         if grid is not None:
-            stats.update({"grid": [tw, th], "layers": -(-len(lights) // 32), "layers_allocated": self.layers_allocated,
-                          "rasterized": n_raster, "every_tile": len(lights) - n_raster})
+            stats.update(
+                {
+                    "grid": [tw, th],
+                    "layers": -(-len(lights) // 32),
+                    "layers_allocated": self.layers_allocated,
+                    "rasterized": n_raster,
+                    "every_tile": len(lights) - n_raster,
+                }
+            )
             mem["light_grid"] = tw * th * self.layers_allocated * 4
             if self.settings["report_accuracy"]:
                 stats["grid_check"] = self.grid_check(frame)
         frame.stats["lights"] = stats
         if dropped:
             frame.stats.setdefault("warnings", []).append(
-                f"{dropped} visible lights over max_lights={self.settings['max_lights']} were not shaded")
+                f"{dropped} visible lights over max_lights={self.settings['max_lights']} were not shaded"
+            )
 
     # ------------------------------------------------------------------ inspection
     def grid_bits(self) -> np.ndarray:
@@ -231,8 +267,9 @@ class LightCullingPass(Pass):
 
     def grid_check(self, frame) -> dict:
         """Missing and extra (light, tile) pairs of the last grid against the exact float64 CPU answer."""
-        exact = exact_tile_lights(self.packed_lights, frame.view, frame.projection, frame.width, frame.height,
-                                  self.settings["tile_size"])
+        exact = exact_tile_lights(
+            self.packed_lights, frame.view, frame.projection, frame.width, frame.height, self.settings["tile_size"]
+        )
         return compare_grids(exact, self.grid_bits())
 
     def bind(self, frame, prog) -> None:

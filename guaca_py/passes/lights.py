@@ -1,4 +1,5 @@
 """Pack scene lights into the std430 layout the shaders read (see shading/lighting.glsl.j2)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -25,8 +26,10 @@ def light_table(lights: list[Light]) -> np.ndarray:
     inner = np.minimum(np.array([l.inner_angle_deg for l in lights], dtype=np.float64), outer)
     out[:, 0:3] = np.array([l.position for l in lights], dtype=np.float64).reshape(n, 3)
     out[:, 3] = [l.radius for l in lights]
-    out[:, 4:7] = np.array([l.color for l in lights], dtype=np.float64).reshape(n, 3) * \
-        np.array([l.intensity for l in lights], dtype=np.float64)[:, None]
+    out[:, 4:7] = (
+        np.array([l.color for l in lights], dtype=np.float64).reshape(n, 3)
+        * np.array([l.intensity for l in lights], dtype=np.float64)[:, None]
+    )
     out[:, 7] = [LIGHT_TYPE_CODE[l.type] for l in lights]
     out[:, 8:11] = d / np.where(norm > 0, norm, 1.0)
     out[:, 11] = np.cos(np.radians(outer))

@@ -1,4 +1,5 @@
 """Tone mapping: linear HDR → display-referred 8-bit (exposure, curve, sRGB encoding)."""
+
 from __future__ import annotations
 
 from ..pipeline.settings import NUMBER, Setting, positive

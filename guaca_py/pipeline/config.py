@@ -1,4 +1,5 @@
 """Load and validate pipeline configs (pipelines/*.yaml): ordered passes with settings."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -38,7 +39,11 @@ class PipelineConfig:
 
 
 def _size(v) -> str | None:
-    ok = isinstance(v, list) and len(v) == 2 and all(isinstance(x, int) and not isinstance(x, bool) and 0 < x <= 16384 for x in v)
+    ok = (
+        isinstance(v, list)
+        and len(v) == 2
+        and all(isinstance(x, int) and not isinstance(x, bool) and 0 < x <= 16384 for x in v)
+    )
     return None if ok else "must be [width, height] with integers in 1..16384"
 
 
@@ -62,14 +67,18 @@ def parse_pipeline(doc: Located) -> PipelineConfig:
         raise doc.error(("transparency",), "must be a mapping like {method: presort_lf_et}")
     mid = tr.pop("method", "presort_lf_et")
     if mid not in method_ids():
-        raise doc.error(("transparency", "method"), f"unknown transparency method '{mid}'",
-                        f"known: {', '.join(method_ids())}")
+        raise doc.error(
+            ("transparency", "method"), f"unknown transparency method '{mid}'", f"known: {', '.join(method_ids())}"
+        )
     schema = method_class(mid).settings_schema()
     settings = resolve_settings(schema, tr, lambda k, r, h: doc.error(("transparency", k), r, h))
     passes_raw = data.get("passes")
     if not isinstance(passes_raw, list) or not passes_raw:
-        raise doc.error(("passes",), "missing or empty 'passes' list",
-                        f"a pipeline needs at least {', '.join(COMPULSORY)} in this order")
+        raise doc.error(
+            ("passes",),
+            "missing or empty 'passes' list",
+            f"a pipeline needs at least {', '.join(COMPULSORY)} in this order",
+        )
     passes: list[PassConfig] = []
     for i, entry in enumerate(passes_raw):
         if isinstance(entry, str):
@@ -83,20 +92,27 @@ def parse_pipeline(doc: Located) -> PipelineConfig:
             raise doc.error(("passes", i), f"unknown pass '{name}'", f"known passes: {', '.join(PASS_TYPES)}")
         if not isinstance(given, dict):
             raise doc.error(("passes", i, name), "pass settings must be a mapping")
-        st = resolve_settings(PASS_TYPES[name].SETTINGS, given,
-                              lambda k, r, h, i=i, name=name: doc.error(("passes", i, name, k), r, h))
+        st = resolve_settings(
+            PASS_TYPES[name].SETTINGS, given, lambda k, r, h, i=i, name=name: doc.error(("passes", i, name, k), r, h)
+        )
         passes.append(PassConfig(name, st, doc.line(("passes", i))))
     names = [p.name for p in passes]
     for c in COMPULSORY:
         if c not in names:
-            raise doc.error(("passes",), f"compulsory pass '{c}' is missing",
-                            f"passes must start with {', '.join(COMPULSORY)} in this order")
-    head = names[:len(COMPULSORY)]
+            raise doc.error(
+                ("passes",),
+                f"compulsory pass '{c}' is missing",
+                f"passes must start with {', '.join(COMPULSORY)} in this order",
+            )
+    head = names[: len(COMPULSORY)]
     if tuple(head) != COMPULSORY:
         bad = next(i for i, n in enumerate(head) if n != COMPULSORY[i])
-        raise doc.error(("passes", bad), f"wrong pass order: found '{head[bad]}' where '{COMPULSORY[bad]}' belongs",
-                        f"passes must start with {', '.join(COMPULSORY)} in this order, post passes after")
-    for i, n in enumerate(names[len(COMPULSORY):], len(COMPULSORY)):
+        raise doc.error(
+            ("passes", bad),
+            f"wrong pass order: found '{head[bad]}' where '{COMPULSORY[bad]}' belongs",
+            f"passes must start with {', '.join(COMPULSORY)} in this order, post passes after",
+        )
+    for i, n in enumerate(names[len(COMPULSORY) :], len(COMPULSORY)):
         if n in COMPULSORY:
             raise doc.error(("passes", i), f"pass '{n}' appears twice")
     settings["method"] = mid
@@ -111,8 +127,13 @@ def load_pipeline(spec: str | Path | PipelineConfig = "default") -> PipelineConf
     if not p.suffix and not p.exists():
         p = builtin_pipeline(str(spec))
         if not p.is_file():
-            raise ConfigError(f"no built-in pipeline '{spec}'", None, None, None,
-                              "give a path to a .yaml file or one of: default, exact")
+            raise ConfigError(
+                f"no built-in pipeline '{spec}'",
+                None,
+                None,
+                None,
+                "give a path to a .yaml file or one of: default, exact",
+            )
     return parse_pipeline(load_yaml_file(p))
 
 

@@ -1,4 +1,5 @@
 """Scene graph → draw list: mesh, material instance, world transform, transparency class."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass

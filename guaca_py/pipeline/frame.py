@@ -1,10 +1,12 @@
 """Per-frame state that flows through the passes, and the frame result handed back."""
+
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -23,10 +25,10 @@ class FrameState:
     """What one frame carries between passes: camera, draw list, named resources, stats."""
 
     renderer: object
-    scene: "Scene"
+    scene: Scene
     width: int
     height: int
-    draws: list["Draw"]
+    draws: list[Draw]
     view: np.ndarray
     projection: np.ndarray
     resources: dict = field(default_factory=dict)
@@ -54,7 +56,7 @@ class FrameState:
         return np.linalg.inv(self.view)[:3, 3]
 
     @property
-    def transparent_draws(self) -> list["Draw"]:
+    def transparent_draws(self) -> list[Draw]:
         """Draws whose material instance can produce alpha < 1."""
         return [d for d in self.draws if d.transparent]
 
@@ -80,11 +82,17 @@ class FrameState:
         """Template variables shading/lighting.glsl.j2 needs (light lookup mode)."""
         return self.renderer.pass_named("light_culling").template_vars()
 
-    def draw_transparent(self, uniforms: dict | None = None, per_program: Callable | None = None,
-                         order: list["Draw"] | None = None) -> None:
+    def draw_transparent(
+        self, uniforms: dict | None = None, per_program: Callable | None = None, order: list[Draw] | None = None
+    ) -> None:
         """Draw every transparent draw (or the draws of `order`, in that order) with the method's program variant."""
-        self.renderer.draw_list(self, self.transparent_draws if order is None else order, transparent=True,
-                                uniforms=uniforms or {}, per_program=per_program)
+        self.renderer.draw_list(
+            self,
+            self.transparent_draws if order is None else order,
+            transparent=True,
+            uniforms=uniforms or {},
+            per_program=per_program,
+        )
 
     def draw_opaque(self) -> None:
         """Draw every opaque draw into the currently bound G-buffer."""

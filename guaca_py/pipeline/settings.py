@@ -1,8 +1,10 @@
 """Tiny typed settings schema shared by passes and transparency methods."""
+
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 
 @dataclass(frozen=True)

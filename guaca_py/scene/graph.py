@@ -1,4 +1,5 @@
 """Scene graph data model: nodes with transforms, meshes, materials, camera and lights."""
+
 from __future__ import annotations
 
 import math
@@ -44,10 +45,10 @@ class Transform:
 class MeshData:
     """Indexed triangle mesh in object space; normals and texcoords are always present."""
 
-    positions: np.ndarray          # (N, 3) float32
-    normals: np.ndarray            # (N, 3) float32, unit length
-    texcoords: np.ndarray          # (N, 2) float32
-    indices: np.ndarray            # (M, 3) uint32
+    positions: np.ndarray  # (N, 3) float32
+    normals: np.ndarray  # (N, 3) float32, unit length
+    texcoords: np.ndarray  # (N, 2) float32
+    indices: np.ndarray  # (M, 3) uint32
     name: str = "mesh"
 
     @property
@@ -76,7 +77,7 @@ class Node:
     transform: Transform = field(default_factory=Transform)
     mesh: MeshData | None = None
     material: MaterialInstance | None = None
-    children: list["Node"] = field(default_factory=list)
+    children: list[Node] = field(default_factory=list)
 
     def walk(self, parent: np.ndarray | None = None):
         """Yield (node, world matrix) for this node and all descendants, depth first, in order."""

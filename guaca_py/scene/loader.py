@@ -56,6 +56,7 @@ Each MaterialInstance gets ``source = (file, line)`` (line of its ``material`` k
 ``uniform_lines = {name: line}``; each Node gets ``source = (file, line)``, so later
 errors can cite the scene file.
 """
+
 from __future__ import annotations
 
 import math
@@ -79,8 +80,7 @@ TRANSFORM_KEYS = ("translation", "rotation_deg", "scale")
 MATERIAL_KEYS = ("description", "uniforms")
 LIGHT_KEYS = {
     "point": ("type", "position", "color", "intensity", "radius"),
-    "spot": ("type", "position", "direction", "color", "intensity", "radius",
-             "inner_angle_deg", "outer_angle_deg"),
+    "spot": ("type", "position", "direction", "color", "intensity", "radius", "inner_angle_deg", "outer_angle_deg"),
     "directional": ("type", "direction", "color", "intensity"),
 }
 TEXTURE_SUFFIXES = (".png", ".jpg", ".jpeg")
@@ -120,7 +120,7 @@ class _Reader:
     def __init__(self, file: str, base_dir: Path):
         self.file, self.base_dir = file, base_dir
         self._construct = yaml.constructor.SafeConstructor()
-        self._meshes: dict[Any, MeshData] = {}          # shared so identical meshes upload once
+        self._meshes: dict[Any, MeshData] = {}  # shared so identical meshes upload once
 
     # ---- generic helpers ---------------------------------------------------------------
 
@@ -131,8 +131,9 @@ class _Reader:
     def mapping(self, at: _At, allowed: tuple[str, ...], what: str) -> dict[str, _At]:
         """Entries of a mapping; unknown or duplicate keys are errors at the key's line."""
         if not isinstance(at.node, yaml.MappingNode):
-            raise self.error(at, f"expected a mapping for {what}, got {_kind(at.node)}",
-                             f"valid keys: {', '.join(allowed)}")
+            raise self.error(
+                at, f"expected a mapping for {what}, got {_kind(at.node)}", f"valid keys: {', '.join(allowed)}"
+            )
         out: dict[str, _At] = {}
         for k, v in at.node.value:
             line = k.start_mark.line + 1
@@ -141,27 +142,27 @@ class _Reader:
             name = k.value
             entry = _At(v, _child_key(at.key, name), line)
             if name not in allowed:
-                raise self.error(entry, f"unknown key {name!r} in {what}",
-                                 f"valid keys: {', '.join(allowed)}")
+                raise self.error(entry, f"unknown key {name!r} in {what}", f"valid keys: {', '.join(allowed)}")
             if name in out:
-                raise self.error(entry, f"duplicate key {name!r} in {what}",
-                                 f"first given on line {out[name].line}")
+                raise self.error(entry, f"duplicate key {name!r} in {what}", f"first given on line {out[name].line}")
             out[name] = entry
         return out
 
     def items(self, at: _At, what: str) -> list[_At]:
         """Items of a sequence, each citing its own line."""
         if not isinstance(at.node, yaml.SequenceNode):
-            raise self.error(at, f"expected a list of {what}, got {_kind(at.node)}",
-                             f"write {at.key.rsplit('.', 1)[-1]}: [] or a '- ' item per entry")
+            raise self.error(
+                at,
+                f"expected a list of {what}, got {_kind(at.node)}",
+                f"write {at.key.rsplit('.', 1)[-1]}: [] or a '- ' item per entry",
+            )
         return [_At(v, _child_key(at.key, i), v.start_mark.line + 1) for i, v in enumerate(at.node.value)]
 
     def plain(self, node: yaml.Node) -> Any:
         """Python value of a node (lists, dicts, numbers, strings) without file context."""
         return self._construct.construct_object(node, deep=True)
 
-    def number(self, at: _At, lo: float | None = None, hi: float | None = None,
-               lo_open: bool = False) -> float:
+    def number(self, at: _At, lo: float | None = None, hi: float | None = None, lo_open: bool = False) -> float:
         """A finite number, optionally within [lo, hi] (or (lo, hi] with lo_open)."""
         node = at.node
         if not (isinstance(node, yaml.ScalarNode) and node.tag in (_TAG + "int", _TAG + "float")):
@@ -183,9 +184,10 @@ class _Reader:
             raise self.error(at, f"expected a list of {n} numbers, got {_kind(at.node)}", f"e.g. {example}")
         if len(at.node.value) != n:
             raise self.error(at, f"expected {n} numbers, got {len(at.node.value)}", f"e.g. {example}")
-        values = tuple(self.number(_At(v, _child_key(at.key, i), v.start_mark.line + 1),
-                                   lo=0.0 if non_negative else None)
-                       for i, v in enumerate(at.node.value))
+        values = tuple(
+            self.number(_At(v, _child_key(at.key, i), v.start_mark.line + 1), lo=0.0 if non_negative else None)
+            for i, v in enumerate(at.node.value)
+        )
         return values
 
     def direction(self, at: _At) -> tuple[float, float, float]:
@@ -212,7 +214,7 @@ class _Reader:
     def scene(self, root: yaml.Node | None) -> Scene:
         """The whole document."""
         scene = Scene()
-        if root is None:                                # empty file: an empty default scene
+        if root is None:  # empty file: an empty default scene
             return scene
         top = self.mapping(_At(root, "", root.start_mark.line + 1), TOP_KEYS, "the scene")
         if "camera" in top:
@@ -239,13 +241,18 @@ class _Reader:
         if "far" in f:
             cam.far = self.number(f["far"], 0.0, lo_open=True)
         if cam.far <= cam.near:
-            raise self.error(f.get("far", f.get("near", at)), f"far ({cam.far:g}) must be greater than near ({cam.near:g})")
+            raise self.error(
+                f.get("far", f.get("near", at)), f"far ({cam.far:g}) must be greater than near ({cam.near:g})"
+            )
         view = np.subtract(cam.target, cam.position)
         if np.linalg.norm(view) < 1e-9:
             raise self.error(f.get("target", at), "camera target equals its position", "move the target")
         if np.linalg.norm(np.cross(view, cam.up)) < 1e-9 * np.linalg.norm(view) * max(np.linalg.norm(cam.up), 1e-9):
-            raise self.error(f.get("up", at), "camera 'up' is zero or parallel to the view direction",
-                             "pick an up vector not along target - position, e.g. [0, 0, -1] when looking down")
+            raise self.error(
+                f.get("up", at),
+                "camera 'up' is zero or parallel to the view direction",
+                "pick an up vector not along target - position, e.g. [0, 0, -1] when looking down",
+            )
         return cam
 
     def light(self, at: _At) -> Light:
@@ -257,8 +264,11 @@ class _Reader:
             raise self.error(f["type"], f"unknown light type {kind!r}", f"valid types: {', '.join(LIGHT_TYPES)}")
         for name, entry in f.items():
             if name not in LIGHT_KEYS[kind]:
-                raise self.error(entry, f"{name!r} does not apply to {kind} lights",
-                                 f"valid keys for {kind}: {', '.join(LIGHT_KEYS[kind])}")
+                raise self.error(
+                    entry,
+                    f"{name!r} does not apply to {kind} lights",
+                    f"valid keys for {kind}: {', '.join(LIGHT_KEYS[kind])}",
+                )
         light = Light(type=kind)
         if "position" in f:
             light.position = self.vector(f["position"])
@@ -275,9 +285,11 @@ class _Reader:
         if "outer_angle_deg" in f:
             light.outer_angle_deg = self.number(f["outer_angle_deg"], 0.0, 89.9, lo_open=True)
         if kind == "spot" and light.inner_angle_deg > light.outer_angle_deg:
-            raise self.error(f.get("inner_angle_deg", f.get("outer_angle_deg", at)),
-                             f"inner_angle_deg ({light.inner_angle_deg:g}) exceeds outer_angle_deg "
-                             f"({light.outer_angle_deg:g})", "the inner cone must fit inside the outer one")
+            raise self.error(
+                f.get("inner_angle_deg", f.get("outer_angle_deg", at)),
+                f"inner_angle_deg ({light.inner_angle_deg:g}) exceeds outer_angle_deg ({light.outer_angle_deg:g})",
+                "the inner cone must fit inside the outer one",
+            )
         return light
 
     def node(self, at: _At) -> Node:
@@ -292,7 +304,7 @@ class _Reader:
             node.material = self.material(f["material"])
         if "children" in f:
             node.children = [self.node(c) for c in self.items(f["children"], "child nodes")]
-        node.source = (self.file, at.line)              # for renderer errors about this node
+        node.source = (self.file, at.line)  # for renderer errors about this node
         return node
 
     def transform(self, at: _At) -> Transform:
@@ -307,20 +319,29 @@ class _Reader:
             s = f["scale"]
             scale = (self.number(s),) * 3 if isinstance(s.node, yaml.ScalarNode) else self.vector(s)
             if any(abs(c) < 1e-12 for c in scale):
-                raise self.error(s, "scale components must be non-zero",
-                                 "a zero scale flattens the object and breaks its normals; hide it another way")
+                raise self.error(
+                    s,
+                    "scale components must be non-zero",
+                    "a zero scale flattens the object and breaks its normals; hide it another way",
+                )
             t.scale = scale
         return t
 
     def mesh(self, at: _At) -> MeshData:
         """mesh: {primitive: kind, params...} or {file: path}."""
         if not isinstance(at.node, yaml.MappingNode):
-            raise self.error(at, f"expected a mapping for mesh, got {_kind(at.node)}",
-                             "write {primitive: box, size: [1, 1, 1]} or {file: model.obj}")
+            raise self.error(
+                at,
+                f"expected a mapping for mesh, got {_kind(at.node)}",
+                "write {primitive: box, size: [1, 1, 1]} or {file: model.obj}",
+            )
         keys = [k.value for k, _ in at.node.value]
         if ("primitive" in keys) == ("file" in keys):
-            raise self.error(at, "a mesh needs exactly one of 'primitive' or 'file'",
-                             f"primitives: {', '.join(PRIMITIVE_KINDS)}; files: .obj .ply .stl .glb .gltf")
+            raise self.error(
+                at,
+                "a mesh needs exactly one of 'primitive' or 'file'",
+                f"primitives: {', '.join(PRIMITIVE_KINDS)}; files: .obj .ply .stl .glb .gltf",
+            )
         if "file" in keys:
             f = self.mapping(at, ("file",), "a file mesh")
             path = self.path(f["file"])
@@ -328,8 +349,7 @@ class _Reader:
                 self._meshes[path] = load_mesh_file(path, self.file, f["file"].line, f["file"].key)
             return self._meshes[path]
         # Primitive parameters are validated by make_primitive; only their lines are needed here.
-        entries = {k.value: _At(v, _child_key(at.key, k.value), k.start_mark.line + 1)
-                   for k, v in at.node.value}
+        entries = {k.value: _At(v, _child_key(at.key, k.value), k.start_mark.line + 1) for k, v in at.node.value}
         kind_at = entries.pop("primitive")
         kind = self.string(kind_at)
         params = {name: self.plain(e.node) for name, e in entries.items()}
@@ -350,20 +370,24 @@ class _Reader:
         else:
             f = self.mapping(at, MATERIAL_KEYS, "a material")
             if "description" not in f:
-                raise self.error(at, "material needs a 'description' (the material name)",
-                                 "e.g. material: {description: pbr, uniforms: {albedo: [1, 0, 0]}}")
+                raise self.error(
+                    at,
+                    "material needs a 'description' (the material name)",
+                    "e.g. material: {description: pbr, uniforms: {albedo: [1, 0, 0]}}",
+                )
             inst = MaterialInstance(description=self.string(f["description"]))
             uniform_lines = {}
             if "uniforms" in f:
                 u = f["uniforms"]
                 if not isinstance(u.node, yaml.MappingNode):
-                    raise self.error(u, f"expected a mapping for uniforms, got {_kind(u.node)}",
-                                     "e.g. uniforms: {alpha: 0.5}")
+                    raise self.error(
+                        u, f"expected a mapping for uniforms, got {_kind(u.node)}", "e.g. uniforms: {alpha: 0.5}"
+                    )
                 names = tuple(k.value for k, _ in u.node.value)
                 for name, entry in self.mapping(u, names, "uniforms").items():
                     inst.uniforms[name] = self.uniform(entry)
                     uniform_lines[name] = entry.line
-        inst.source = (self.file, at.line)              # the renderer cites this when validating
+        inst.source = (self.file, at.line)  # the renderer cites this when validating
         inst.uniform_lines = uniform_lines
         return inst
 
@@ -373,11 +397,15 @@ class _Reader:
         if isinstance(node, yaml.SequenceNode):
             if not node.value:
                 raise self.error(at, "uniform value is an empty list")
-            return tuple(self.uniform(_At(v, _child_key(at.key, i), v.start_mark.line + 1))
-                         for i, v in enumerate(node.value))
+            return tuple(
+                self.uniform(_At(v, _child_key(at.key, i), v.start_mark.line + 1)) for i, v in enumerate(node.value)
+            )
         if isinstance(node, yaml.MappingNode) or node.tag == _TAG + "null":
-            raise self.error(at, f"unsupported uniform value: {_kind(node)}",
-                             "use a number, true/false, a list of numbers or a texture path")
+            raise self.error(
+                at,
+                f"unsupported uniform value: {_kind(node)}",
+                "use a number, true/false, a list of numbers or a texture path",
+            )
         if node.tag == _TAG + "bool":
             return bool(self.plain(node))
         if node.tag in (_TAG + "int", _TAG + "float"):
@@ -386,8 +414,11 @@ class _Reader:
         if text.lower().endswith(TEXTURE_SUFFIXES):
             path = self.path(at)
             if not path.is_file():
-                raise self.error(at, f"texture file not found: {path}",
-                                 "relative paths are resolved against the scene file's directory")
+                raise self.error(
+                    at,
+                    f"texture file not found: {path}",
+                    "relative paths are resolved against the scene file's directory",
+                )
             return str(path)
         return text
 
@@ -402,8 +433,12 @@ def load_scene_text(text: str, source_name: str = "<string>", base_dir: str | Pa
         if context and exc.context_mark and mark and exc.context_mark.line != mark.line:
             context += f" (started on line {exc.context_mark.line + 1})"  # where the unclosed thing began
         reason = "invalid YAML: " + "; ".join(s for s in (context, exc.problem) if s)
-        raise ConfigError(reason, source_name, mark.line + 1 if mark else None,
-                          hint="check indentation, colons, quotes and brackets around this line") from None
+        raise ConfigError(
+            reason,
+            source_name,
+            mark.line + 1 if mark else None,
+            hint="check indentation, colons, quotes and brackets around this line",
+        ) from None
     except yaml.YAMLError as exc:
         raise ConfigError(f"invalid YAML: {exc}", source_name) from None
     base = Path(base_dir) if base_dir is not None else Path.cwd()

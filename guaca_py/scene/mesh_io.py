@@ -1,4 +1,5 @@
 """Load triangle meshes from files (OBJ, PLY, STL, glTF/GLB, ...) into MeshData via trimesh."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -33,7 +34,7 @@ def _unitize(normals: np.ndarray) -> np.ndarray:
 def _file_normals(mesh) -> np.ndarray | None:
     """Vertex normals the file itself provided, or None (asking trimesh would compute some)."""
     cache = getattr(getattr(mesh, "_cache", None), "cache", None)
-    if cache is None:                                   # trimesh internals changed: accept its normals
+    if cache is None:  # trimesh internals changed: accept its normals
         return np.asarray(mesh.vertex_normals, dtype=np.float64)
     normals = cache.get("vertex_normals")
     if normals is None or np.shape(normals) != np.shape(mesh.vertices):
@@ -50,8 +51,9 @@ def _texcoords(mesh, count: int) -> np.ndarray:
     return np.nan_to_num(np.asarray(uv, dtype=np.float32))
 
 
-def load_mesh_file(path: str | Path, file_for_errors: str | Path | None = None,
-                   line: int | None = None, key: str | None = None) -> MeshData:
+def load_mesh_file(
+    path: str | Path, file_for_errors: str | Path | None = None, line: int | None = None, key: str | None = None
+) -> MeshData:
     """Read a mesh file into one MeshData; scenes are flattened with their node transforms."""
     import trimesh  # imported lazily: scenes made only of primitives never pay for it
 
@@ -62,8 +64,9 @@ def load_mesh_file(path: str | Path, file_for_errors: str | Path | None = None,
 
     if not p.is_file():
         what = "is a directory, not a mesh file" if p.is_dir() else "not found"
-        raise fail(f"mesh file {what}: {p}",
-                   "check the path; relative paths are resolved against the scene file's directory")
+        raise fail(
+            f"mesh file {what}: {p}", "check the path; relative paths are resolved against the scene file's directory"
+        )
     try:
         loaded = trimesh.load(str(p))
     except Exception as exc:  # trimesh raises many types for unreadable input; all mean "bad file"
@@ -73,13 +76,17 @@ def load_mesh_file(path: str | Path, file_for_errors: str | Path | None = None,
         parts = [g for g in loaded.geometry.values() if isinstance(g, trimesh.Trimesh) and len(g.faces)]
         if not parts:
             if loaded.geometry:
-                raise fail(f"{p} is not a triangle mesh (it holds no faces)",
-                           "point clouds and line drawings cannot be rendered; export triangles")
+                raise fail(
+                    f"{p} is not a triangle mesh (it holds no faces)",
+                    "point clouds and line drawings cannot be rendered; export triangles",
+                )
             raise fail(f"{p} contains no geometry", "the file is empty or not in a format trimesh understands")
-        loaded = loaded.to_mesh()                       # bakes each instance's scene-graph transform
+        loaded = loaded.to_mesh()  # bakes each instance's scene-graph transform
     if not isinstance(loaded, trimesh.Trimesh):
-        raise fail(f"{p} is not a triangle mesh (got {type(loaded).__name__})",
-                   "point clouds and line drawings cannot be rendered; export triangles")
+        raise fail(
+            f"{p} is not a triangle mesh (got {type(loaded).__name__})",
+            "point clouds and line drawings cannot be rendered; export triangles",
+        )
 
     positions = np.asarray(loaded.vertices, dtype=np.float64)
     faces = np.asarray(loaded.faces, dtype=np.int64).reshape(-1, 3)

@@ -1,9 +1,11 @@
 """Procedural meshes (quad, plane, box, sphere, cylinder) with CCW front faces seen from outside."""
+
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from numbers import Integral, Real
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -39,7 +41,7 @@ def _plane(size, subdivisions: int) -> MeshData:
     """Rectangle in the XZ plane centred on the origin, facing +Y, split into a grid."""
     n = subdivisions
     t = np.linspace(0.0, 1.0, n + 1)
-    fu, fv = np.meshgrid(t, t, indexing="xy")           # fv runs along +Z, row-major rows
+    fu, fv = np.meshgrid(t, t, indexing="xy")  # fv runs along +Z, row-major rows
     x = (fu - 0.5) * size[0]
     z = (fv - 0.5) * size[1]
     pos = np.stack([x, np.zeros_like(x), z], axis=-1).reshape(-1, 3)
@@ -48,7 +50,7 @@ def _plane(size, subdivisions: int) -> MeshData:
     uv = np.stack([fu, 1.0 - fv], axis=-1).reshape(-1, 2)
     i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="xy")
     a = (j * (n + 1) + i).ravel()
-    b, c, d = a + 1, a + n + 2, a + n + 1               # +X, +X+Z, +Z neighbours of a
+    b, c, d = a + 1, a + n + 2, a + n + 1  # +X, +X+Z, +Z neighbours of a
     tris = np.concatenate([np.stack([a, d, c], 1), np.stack([a, c, b], 1)])
     return _mesh("plane", pos, nrm, uv, tris)
 
@@ -57,9 +59,14 @@ def _box(size) -> MeshData:
     """Axis-aligned box centred on the origin; 4 vertices per face so normals stay flat."""
     half = np.asarray(size, dtype=np.float64) / 2.0
     # (outward normal, screen-up axis of that face); screen-right = up x normal, so right x up = normal.
-    faces = [((1, 0, 0), (0, 1, 0)), ((-1, 0, 0), (0, 1, 0)),
-             ((0, 0, 1), (0, 1, 0)), ((0, 0, -1), (0, 1, 0)),
-             ((0, 1, 0), (0, 0, -1)), ((0, -1, 0), (0, 0, 1))]
+    faces = [
+        ((1, 0, 0), (0, 1, 0)),
+        ((-1, 0, 0), (0, 1, 0)),
+        ((0, 0, 1), (0, 1, 0)),
+        ((0, 0, -1), (0, 1, 0)),
+        ((0, 1, 0), (0, 0, -1)),
+        ((0, -1, 0), (0, 0, 1)),
+    ]
     pos, nrm, uv, tris = [], [], [], []
     for k, (n, v) in enumerate(faces):
         n, v = np.asarray(n, float), np.asarray(v, float)
@@ -77,7 +84,7 @@ def _ring_dirs(segments: int) -> tuple[np.ndarray, np.ndarray]:
     """sin/cos of the azimuth for segments+1 columns (the seam column is duplicated for UVs)."""
     phi = np.linspace(0.0, 2.0 * math.pi, segments + 1)
     s, c = np.sin(phi), np.cos(phi)
-    s[-1], c[-1] = s[0], c[0]                           # exact seam so the duplicate is bit-identical
+    s[-1], c[-1] = s[0], c[0]  # exact seam so the duplicate is bit-identical
     return s, c
 
 
@@ -86,7 +93,7 @@ def _sphere(radius: float, segments: int, rings: int) -> MeshData:
     sp, cp = _ring_dirs(segments)
     theta = np.linspace(0.0, math.pi, rings + 1)
     st, ct = np.sin(theta), np.cos(theta)
-    st[0] = st[-1] = 0.0                                # exact poles
+    st[0] = st[-1] = 0.0  # exact poles
     ct[0], ct[-1] = 1.0, -1.0
     # Azimuth 0 points at +Z and grows towards +X, so columns run left to right seen from outside.
     dirs = np.stack([np.outer(st, sp), np.repeat(ct[:, None], segments + 1, 1), np.outer(st, cp)], -1)
@@ -97,11 +104,11 @@ def _sphere(radius: float, segments: int, rings: int) -> MeshData:
     w = segments + 1
     for r in range(rings):
         for s in range(segments):
-            a, d = r * w + s, r * w + s + 1             # upper row
-            b, c = a + w, d + w                         # lower row
-            if r != rings - 1:                          # bottom row: b and c are both the pole
+            a, d = r * w + s, r * w + s + 1  # upper row
+            b, c = a + w, d + w  # lower row
+            if r != rings - 1:  # bottom row: b and c are both the pole
                 tris.append((a, b, c))
-            if r != 0:                                  # top row: a and d are both the pole
+            if r != 0:  # top row: a and d are both the pole
                 tris.append((a, c, d))
     return _mesh("sphere", dirs * radius, dirs, uv, tris)
 
@@ -118,7 +125,7 @@ def _cylinder(radius: float, height: float, segments: int, capped: bool) -> Mesh
     uv = [np.concatenate([np.stack([u, np.ones(w)], -1), np.stack([u, np.zeros(w)], -1)])]
     tris = []
     for s in range(segments):
-        a, d, b, c = s, s + 1, s + w, s + 1 + w         # a/d top row, b/c bottom row
+        a, d, b, c = s, s + 1, s + w, s + 1 + w  # a/d top row, b/c bottom row
         tris += [(a, b, c), (a, c, d)]
     if capped:
         base = 2 * w
@@ -138,6 +145,7 @@ def _cylinder(radius: float, height: float, segments: int, capped: bool) -> Mesh
 
 # ---- parameter validation ---------------------------------------------------------------
 
+
 def _bad(kind: str, key: str, reason: str, hint: str) -> ConfigError:
     """A ConfigError for one primitive parameter (the loader adds file and line)."""
     return ConfigError(f"{kind}: {reason}", key=key, hint=hint)
@@ -150,15 +158,16 @@ def _is_number(v: Any) -> bool:
 
 def _size(n: int) -> Callable[[str, str, Any], list[float]]:
     """Validator for an n-component positive size (a single number means all components)."""
+
     def check(kind: str, key: str, v: Any) -> list[float]:
         if _is_number(v):
             v = [v] * n
         if not isinstance(v, (list, tuple)) or len(v) != n or not all(_is_number(x) for x in v):
-            raise _bad(kind, key, f"expected a list of {n} numbers, got {v!r}",
-                       f"e.g. {key}: {[1] * n}")
+            raise _bad(kind, key, f"expected a list of {n} numbers, got {v!r}", f"e.g. {key}: {[1] * n}")
         if any(x <= 0 for x in v):
             raise _bad(kind, key, f"all components must be > 0, got {list(v)}", "use positive extents")
         return [float(x) for x in v]
+
     return check
 
 
@@ -171,10 +180,12 @@ def _positive(kind: str, key: str, v: Any) -> float:
 
 def _count(lo: int, hi: int) -> Callable[[str, str, Any], int]:
     """Validator for an integer in [lo, hi]."""
+
     def check(kind: str, key: str, v: Any) -> int:
         if not isinstance(v, Integral) or isinstance(v, bool) or not lo <= v <= hi:
             raise _bad(kind, key, f"expected an integer in [{lo}, {hi}], got {v!r}", f"e.g. {key}: {lo * 4}")
         return int(v)
+
     return check
 
 
@@ -188,13 +199,25 @@ def _flag(kind: str, key: str, v: Any) -> bool:
 # kind -> (builder, {param: (validator, default)}); defaults make a ~1 unit object at the origin.
 _KINDS: dict[str, tuple[Callable[..., MeshData], dict[str, tuple[Callable, Any]]]] = {
     "quad": (_quad, {"size": (_size(2), [1.0, 1.0])}),
-    "plane": (_plane, {"size": (_size(2), [1.0, 1.0]),
-                       "subdivisions": (_count(1, _MAX_SUBDIVISIONS), 1)}),
+    "plane": (_plane, {"size": (_size(2), [1.0, 1.0]), "subdivisions": (_count(1, _MAX_SUBDIVISIONS), 1)}),
     "box": (_box, {"size": (_size(3), [1.0, 1.0, 1.0])}),
-    "sphere": (_sphere, {"radius": (_positive, 0.5), "segments": (_count(3, _MAX_SEGMENTS), 32),
-                         "rings": (_count(2, _MAX_SEGMENTS), 16)}),
-    "cylinder": (_cylinder, {"radius": (_positive, 0.5), "height": (_positive, 1.0),
-                             "segments": (_count(3, _MAX_SEGMENTS), 32), "capped": (_flag, True)}),
+    "sphere": (
+        _sphere,
+        {
+            "radius": (_positive, 0.5),
+            "segments": (_count(3, _MAX_SEGMENTS), 32),
+            "rings": (_count(2, _MAX_SEGMENTS), 16),
+        },
+    ),
+    "cylinder": (
+        _cylinder,
+        {
+            "radius": (_positive, 0.5),
+            "height": (_positive, 1.0),
+            "segments": (_count(3, _MAX_SEGMENTS), 32),
+            "capped": (_flag, True),
+        },
+    ),
 }
 
 PRIMITIVE_KINDS: tuple[str, ...] = tuple(_KINDS)
@@ -203,22 +226,23 @@ PRIMITIVE_KINDS: tuple[str, ...] = tuple(_KINDS)
 def primitive_params(kind: str) -> dict[str, Any]:
     """Parameter names of a primitive kind with their defaults."""
     if kind not in _KINDS:
-        raise ConfigError(f"unknown primitive {kind!r}", key="primitive",
-                          hint=f"valid kinds: {', '.join(PRIMITIVE_KINDS)}")
+        raise ConfigError(
+            f"unknown primitive {kind!r}", key="primitive", hint=f"valid kinds: {', '.join(PRIMITIVE_KINDS)}"
+        )
     return {k: d for k, (_, d) in _KINDS[kind][1].items()}
 
 
 def make_primitive(kind: str, **params: Any) -> MeshData:
     """Build a primitive mesh; bad kind or parameters raise ConfigError with the valid choices."""
     if not isinstance(kind, str) or kind not in _KINDS:
-        raise ConfigError(f"unknown primitive {kind!r}", key="primitive",
-                          hint=f"valid kinds: {', '.join(PRIMITIVE_KINDS)}")
+        raise ConfigError(
+            f"unknown primitive {kind!r}", key="primitive", hint=f"valid kinds: {', '.join(PRIMITIVE_KINDS)}"
+        )
     builder, spec = _KINDS[kind]
     args = {}
     for key, value in params.items():
         if key not in spec:
-            raise _bad(kind, key, f"unknown parameter {key!r}",
-                       f"valid parameters for {kind}: {', '.join(spec)}")
+            raise _bad(kind, key, f"unknown parameter {key!r}", f"valid parameters for {kind}: {', '.join(spec)}")
         args[key] = spec[key][0](kind, key, value)
     for key, (_, default) in spec.items():
         args.setdefault(key, default)

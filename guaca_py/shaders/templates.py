@@ -1,4 +1,5 @@
 """Render GLSL from Jinja2 templates; map compiler messages back to material files."""
+
 from __future__ import annotations
 
 import re
@@ -37,7 +38,7 @@ class SourceMap:
         sid, start = None, 0
         for i, text in enumerate(lines[:line], 1):
             if text.startswith(_BEGIN):
-                sid, start = int(text[len(_BEGIN):]), i
+                sid, start = int(text[len(_BEGIN) :]), i
             elif text.startswith(_END):
                 sid = None
         if sid is None or sid not in self.origins or line == start:
@@ -82,16 +83,20 @@ class ShaderLibrary:
     def __init__(self, ctx, extra_dirs: list[str | Path] | None = None):
         self.ctx = ctx
         dirs = [str(d) for d in (extra_dirs or [])] + [str(builtin_dir("shader_templates"))]
-        self.env = jinja2.Environment(loader=jinja2.FileSystemLoader(dirs), undefined=jinja2.StrictUndefined,
-                                      keep_trailing_newline=True, trim_blocks=True, lstrip_blocks=True)
+        self.env = jinja2.Environment(
+            loader=jinja2.FileSystemLoader(dirs),
+            undefined=jinja2.StrictUndefined,
+            keep_trailing_newline=True,
+            trim_blocks=True,
+            lstrip_blocks=True,
+        )
         self._programs: dict = {}
 
     def render(self, template: str, **variables) -> str:
         """Render one template to GLSL text."""
         return self.env.get_template(template).render(**variables)
 
-    def program(self, key, stages: dict[str, tuple[str, dict]], smap: SourceMap | None = None,
-                label: str = "program"):
+    def program(self, key, stages: dict[str, tuple[str, dict]], smap: SourceMap | None = None, label: str = "program"):
         """Compile (once per key) a program from {stage: (template, variables)}; stage names are moderngl's."""
         if key in self._programs:
             return self._programs[key]
@@ -103,8 +108,9 @@ class ShaderLibrary:
             else:
                 prog = self.ctx.program(**sources)
         except Exception as exc:  # moderngl raises moderngl.Error with the driver's log
-            raise ShaderCompileError(f"GLSL compilation of {label} failed:\n"
-                                     + explain_compile_error(str(exc), sources, smap, label)) from exc
+            raise ShaderCompileError(
+                f"GLSL compilation of {label} failed:\n" + explain_compile_error(str(exc), sources, smap, label)
+            ) from exc
         prog._gua_sources = sources
         self._programs[key] = prog
         return prog
