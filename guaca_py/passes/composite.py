@@ -6,8 +6,6 @@ import numpy as np
 
 from .base import FullscreenPass
 
-OUTPUT_IMAGE_UNIT = 7  # units below may be bound by methods (A-buffer saturation depth: 0)
-
 
 class CompositePass(FullscreenPass):
     """Full-screen pass producing linear HDR color ('hdr')."""
@@ -16,26 +14,22 @@ class CompositePass(FullscreenPass):
     reads = ("gbuffer", "transparent", "light_grid")
     writes = ("hdr",)
     target_dtype = "f4"
+    compute = True
+    template = "composite/shade_composite.comp.j2"
 
     def program(self, frame):
         """Composite program for this method, light lookup and transparency presence."""
-        r = self.renderer
         method = frame.resources.get("transparent")
         lights = frame.shading_vars()
         tvars = dict(
             has_transparency=method is not None,
             **lights,
             method_extensions=method.resolve_extensions() if method else "",
-            output_image_unit=OUTPUT_IMAGE_UNIT,
             method_resolve_template=method.resolve_template() if method else "",
             **(method.template_vars() if method else {}),
         )
         key = ("composite", tuple(sorted((k, str(v)) for k, v in tvars.items())), method.id if method else None)
-        return r.shaders.program(
-            key,
-            {"compute_shader": ("composite/shade_composite.comp.j2", tvars)},
-            label="composite",
-        )
+        return self.compile(tvars, key)
 
     def execute(self, frame) -> None:
         """Shade every pixel; writes frame.resources['hdr']."""
@@ -51,7 +45,7 @@ class CompositePass(FullscreenPass):
         prog["gua_threshold"] = threshold
         prog["gua_background"].write(np.asarray(frame.scene.background, dtype=np.float32).tobytes())
         g = frame.resources["gbuffer"]
-        tex = self._run_compute(
+        tex = self.run_fullscreen(
             frame,
             prog,
             {
@@ -65,19 +59,6 @@ class CompositePass(FullscreenPass):
             method.after_composite(frame)
         frame.resources["hdr"] = tex
         frame.resources["color"] = tex
-
-    def _run_compute(self, frame, prog, inputs: dict):
-        """Bind the inputs to texture units and the output to an image unit, one invocation per pixel."""
-        tex = self.target(frame).color_attachments[0]
-        for unit, (uname, t) in enumerate(inputs.items()):
-            t.use(location=unit)
-            if uname in prog:
-                prog[uname] = unit
-        tex.bind_to_image(OUTPUT_IMAGE_UNIT, read=False, write=True)
-        prog.run(-(-frame.width // 8), -(-frame.height // 8), 1)
-        # later passes sample the result as a texture (and a read-back reads it)
-        self.ctx.memory_barrier()
-        return tex
 
     def _method_geometry(self, frame, method) -> None:
         """Methods that shade while drawing run their geometry passes here, after light culling."""
