@@ -58,6 +58,7 @@ class Renderer:
         self.meshes = MeshCache(self.ctx)
         self.textures = TextureCache(self.ctx)
         self._fullscreen_vaos: dict[int, object] = {}
+        self._queries: dict[str, object] = {}
         self.set_method(method or self.config.transparency["method"], method_overrides)
         self.passes = [PASS_TYPES[p.name](self, p.settings) for p in self.config.passes]
         available = set(_FIRST_RESOURCES)
@@ -178,17 +179,25 @@ class Renderer:
         vao.render(moderngl.TRIANGLES, vertices=3)
 
     # ------------------------------------------------------------------ frames
-    def _timed(self, fn) -> tuple[float, str]:
+    def _timed(self, name: str, fn):
+        """Run `fn`; returns a callable giving its time in ms, and the timer kind.
+
+        GPU timer queries are read only after the whole frame was submitted (reading one waits for
+        the GPU), and one query object per pass is reused from frame to frame.
+        """
         if self.caps.gpu_timers:
-            q = self.ctx.query(time=True)
+            q = self._queries.get(name)
+            if q is None:
+                q = self._queries[name] = self.ctx.query(time=True)
             with q:
                 fn()
-            return q.elapsed / 1e6, "gpu"
+            return (lambda: q.elapsed / 1e6), "gpu"
         self.ctx.finish()
         t0 = time.perf_counter()
         fn()
         self.ctx.finish()
-        return (time.perf_counter() - t0) * 1e3, "wall"
+        ms = (time.perf_counter() - t0) * 1e3
+        return (lambda: ms), "wall"
 
     def render(self, scene: Scene, width: int | None = None, height: int | None = None) -> FrameResult:
         """Render one frame of `scene` and read it back."""
@@ -209,17 +218,20 @@ class Renderer:
             }
         )
         t0 = time.perf_counter()
+        timers = {}
         for p in self.passes:
             for _attempt in range(1 + 16):
                 warned = len(frame.stats.get("warnings", []))
-                ms, kind = self._timed(lambda p=p: p.execute(frame))
+                timer, kind = self._timed(p.name, lambda p=p: p.execute(frame))
                 if not frame.rerender:
                     break
                 frame.rerender = False
                 frame.stats["regrown"] += 1
                 del frame.stats.get("warnings", [])[warned:]  # that attempt's overflow is repaired
-            frame.stats["passes"][p.name] = {"ms": round(ms, 4)}
+            timers[p.name] = timer
             frame.stats["timer"] = kind
+        for name, timer in timers.items():
+            frame.stats["passes"][name] = {"ms": round(timer(), 4)}
         frame.stats.setdefault("memory", {}).update(self.method.memory() if frame.transparent_draws else {})
         declared = self.method.geometry_passes
         frame.stats.setdefault(
@@ -248,3 +260,6 @@ class Renderer:
         self.method.release()
         self.meshes.release()
         self.textures.release()
+        for q in self._queries.values():
+            q.release()
+        self._queries.clear()
