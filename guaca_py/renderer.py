@@ -58,7 +58,9 @@ class Renderer:
         self.meshes = MeshCache(self.ctx)
         self.textures = TextureCache(self.ctx)
         self._fullscreen_vaos: dict[int, object] = {}
-        self._queries: dict[str, object] = {}
+        self._queries: dict[tuple[str, int], object] = {}
+        self._frame_index = 0
+        self._previous_timers: dict | None = None
         self.set_method(method or self.config.transparency["method"], method_overrides)
         self.passes = [PASS_TYPES[p.name](self, p.settings) for p in self.config.passes]
         available = set(_FIRST_RESOURCES)
@@ -183,12 +185,14 @@ class Renderer:
         """Run `fn`; returns a callable giving its time in ms, and the timer kind.
 
         GPU timer queries are read only after the whole frame was submitted (reading one waits for
-        the GPU), and one query object per pass is reused from frame to frame.
+        the GPU). Two query objects per pass alternate from frame to frame, so a frame loop without
+        read-back can report the previous frame's times without waiting for this one.
         """
         if self.caps.gpu_timers:
-            q = self._queries.get(name)
+            key = (name, self._frame_index % 2)
+            q = self._queries.get(key)
             if q is None:
-                q = self._queries[name] = self.ctx.query(time=True)
+                q = self._queries[key] = self.ctx.query(time=True)
             with q:
                 fn()
             return (lambda: q.elapsed / 1e6), "gpu"
@@ -199,8 +203,10 @@ class Renderer:
         ms = (time.perf_counter() - t0) * 1e3
         return (lambda: ms), "wall"
 
-    def render(self, scene: Scene, width: int | None = None, height: int | None = None) -> FrameResult:
-        """Render one frame of `scene` and read it back."""
+    def render(
+        self, scene: Scene, width: int | None = None, height: int | None = None, *, read_back: bool = True
+    ) -> FrameResult:
+        """Render one frame of `scene`; the image is read back unless `read_back` is False."""
         w, h = width or self.config.resolution[0], height or self.config.resolution[1]
         cam = scene.camera
         draws = build_draw_list(scene, self.materials)
@@ -230,8 +236,13 @@ class Renderer:
                 del frame.stats.get("warnings", [])[warned:]  # that attempt's overflow is repaired
             timers[p.name] = timer
             frame.stats["timer"] = kind
-        for name, timer in timers.items():
-            frame.stats["passes"][name] = {"ms": round(timer(), 4)}
+        if read_back or kind != "gpu" or self._previous_timers is None:
+            frame.stats["passes"] = {name: {"ms": round(t(), 4)} for name, t in timers.items()}
+        else:  # the previous frame's queries: finished or nearly, so reading them does not stall this one
+            frame.stats["passes"] = {name: {"ms": round(t(), 4)} for name, t in self._previous_timers.items()}
+            frame.stats["passes_of"] = "previous frame"
+        self._previous_timers = None if read_back else timers
+        self._frame_index += 1
         frame.stats.setdefault("memory", {}).update(self.method.memory() if frame.transparent_draws else {})
         declared = self.method.geometry_passes
         frame.stats.setdefault(
@@ -242,6 +253,8 @@ class Renderer:
                 "a pass took longer than the 32-bit GPU timer result can hold (4.29 s); its time is clipped"
             )
         frame.stats["frame_wall_ms"] = round((time.perf_counter() - t0) * 1e3, 3)
+        if not read_back:
+            return FrameResult(None, frame.stats, texture=frame.resources["color"])
         return self._read_back(frame)
 
     def _read_back(self, frame) -> FrameResult:
