@@ -273,6 +273,4 @@ class Renderer:
         self.method.release()
         self.meshes.release()
         self.textures.release()
-        for q in self._queries.values():
-            q.release()
-        self._queries.clear()
+        self._queries.clear()  # moderngl has no release for queries: reusing them bounds them at two per pass
