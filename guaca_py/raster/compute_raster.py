@@ -103,7 +103,11 @@ class ComputeRasterizer:
         key = ("compute_raster", str(mat.path), method.id, tuple(sorted((k, str(v)) for k, v in mvars.items())))
         shaders = self.renderer.shaders
         progs = []
-        for stage, template in (("vertex", "raster/vertex.comp.j2"), ("setup", "raster/setup.comp.j2"), ("fine", "raster/fine.comp.j2")):
+        for stage, template in (
+            ("vertex", "raster/vertex.comp.j2"),
+            ("setup", "raster/setup.comp.j2"),
+            ("fine", "raster/fine.comp.j2"),
+        ):
             smap = SourceMap()
             if stage == "vertex":
                 variables = dict(

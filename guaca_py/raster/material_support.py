@@ -41,7 +41,9 @@ def compute_material(mat: MaterialDescription) -> ComputeMaterial:
         hit = _FRAGMENT_ONLY.search(code)
         lod = _IMPLICIT_LOD.search(_TEXTURE_AT_TEXCOORDS.sub("", code))
         if hit or lod:
-            what = hit.group(1) if hit else f"{lod.group(1)}() with implicit LOD on coordinates other than gua_texcoords"
+            what = (
+                hit.group(1) if hit else f"{lod.group(1)}() with implicit LOD on coordinates other than gua_texcoords"
+            )
             return ComputeMaterial(
                 {},
                 False,
