@@ -9,7 +9,15 @@ import colorsys
 import numpy as np
 import pytest
 from conftest import quad_node, simple_scene
-from reference import ReferenceCache, compare, interpenetrating_scene, layered_quads_scene, triangle_mesh, unlit
+from reference import (
+    ReferenceCache,
+    compare,
+    edge_mask,
+    interpenetrating_scene,
+    layered_quads_scene,
+    triangle_mesh,
+    unlit,
+)
 
 from guaca_py.errors import ConfigError, UnsupportedMethodError
 from guaca_py.scene.graph import Light, MaterialInstance, MeshData, Node, Transform
@@ -147,31 +155,39 @@ def test_triangle_crossing_the_near_plane(renderer_factory):
     assert not (diff & ~mask).any() and diff.sum() <= 0.002 * SIZE * SIZE
 
 
-def test_back_faces_shade_like_the_fragment_host(renderer_factory):
-    # lit quads seen from the front and from the back (rotated 180 degrees): gua_normal is flipped
-    # for back faces exactly as gl_FrontFacing does, so the lit images agree off the edges
-    def lit(name, z, rot):
+def test_back_faces_like_the_fragment_host(renderer_factory, tmp_path):
+    # a quad seen from the front and one seen from the back (rotated 200 degrees), drawn with a
+    # material that shows gua_normal: the compute host flips it for back faces exactly as the
+    # fragment host's gl_FrontFacing does (GL's counter-clockwise front faces)
+    (tmp_path / "show_normal.json").write_text(
+        '{"name": "show_normal", "uniforms": {"alpha": {"type": "float", "default": 0.5}},'
+        ' "visibility": [{"name": "show_normal_visibility", "source": ["void show_normal_visibility() {",'
+        ' "gua_color = gua_normal * 0.5 + 0.5; gua_alpha = alpha; gua_unlit = true;", "}"]}]}'
+    )
+
+    def node(name, z, rot):
         return Node(
-            name,
-            Transform((0.3 * z, 0.0, z), (0.0, rot, 0.0)),
-            tessellated_plane(6, 2.5, 0.2),
-            MaterialInstance("pbr", {"albedo": [0.8, 0.6, 0.3], "alpha": 0.5, "roughness": 0.4}),
+            name, Transform((0.4 * z, 0.0, z), (10.0, rot, 0.0)), tessellated_plane(6, 2.5, 0.2), unlit((1, 1, 1))
         )
 
-    scene = simple_scene([lit("front", 0.5, 20.0), lit("back", -0.5, 200.0)])
-    scene.lights = [Light("point", (1.0, 2.0, 3.0), intensity=30.0, radius=20.0)]
-    compute, hardware = both(renderer_factory, "presort_lf_et")
+    nodes = [node("front", 0.5, 20.0), node("back", -0.5, 200.0)]
+    for n in nodes:
+        n.material = MaterialInstance("show_normal", {})
+    scene = simple_scene(nodes)
+    compute, hardware = (
+        renderer_factory("exact", method="presort_lf_et", method_overrides={"raster": r}, material_paths=[tmp_path])
+        for r in ("compute", "hardware")
+    )
     c, h = compute.render(scene, SIZE, SIZE), hardware.render(scene, SIZE, SIZE)
     tris = []
-    for node, world in scene.walk():
-        p = node.mesh.positions @ world[:3, :3].T + world[:3, 3]
-        tris.append(p[node.mesh.indices.reshape(-1, 3)])
-    from reference import edge_mask
-
+    for n, world in scene.walk():
+        p = n.mesh.positions @ world[:3, :3].T + world[:3, 3]
+        tris.append(p[n.mesh.indices.reshape(-1, 3)])
     mask = edge_mask(np.concatenate(tris), scene.camera, SIZE, SIZE)
     diff = np.abs(c.linear - h.linear).max(axis=2)
     assert diff[~mask].max() < 1e-3, float(diff[~mask].max())
-    assert (c.linear[~mask] > 0.02).any()  # something lit was drawn
+    # both quads' normals face the camera (+z, blue > 0.5) once flipped for the back face
+    assert c.stats["raster"]["compute_draws"] == 2 and (c.linear[~mask][:, 2] > 0.3).sum() > 500
 
 
 def test_textured_material_gets_quad_derivatives(renderer_factory, tmp_path):
@@ -192,8 +208,6 @@ def test_textured_material_gets_quad_derivatives(renderer_factory, tmp_path):
     compute, hardware = both(renderer_factory, "presort_lf")
     c, h = compute.render(scene, 64, 64), hardware.render(scene, 64, 64)
     p = node.mesh.positions @ node.transform.matrix()[:3, :3].T + node.transform.matrix()[:3, 3]
-    from reference import edge_mask
-
     mask = edge_mask(p[node.mesh.indices.reshape(-1, 3)], scene.camera, 64, 64)
     diff = np.abs(c.linear - h.linear).max(axis=2)[~mask]
     assert np.median(diff) < 1e-3 and diff.max() < 0.05, (float(np.median(diff)), float(diff.max()))
