@@ -31,6 +31,13 @@ def auto_rule() -> str:
     )
 
 
+def device_rule(caps) -> str:
+    """What `auto` does on this device, and why (for `guaca info`)."""
+    if caps.software:
+        return "hardware for every draw: " + auto_choice(True, 0.0)[1]
+    return auto_rule()
+
+
 def _sample(mesh) -> np.ndarray:
     """A fixed sample of the mesh's triangles as object-space corner positions (k, 3, 3), cached."""
     hit = _samples.get(id(mesh))
