@@ -30,6 +30,7 @@ from gpu_clock import at_full_clock, clock_summary  # noqa: E402
 from guaca_py import Renderer  # noqa: E402
 from guaca_py.benchmarking import measure_interleaved  # noqa: E402
 from guaca_py.raster.choice import AUTO_MAX_MEAN_AREA_PX, mean_projected_area  # noqa: E402
+from guaca_py.raster.compute_raster import SMALL_AREA, TILE  # noqa: E402
 from guaca_py.scene.graph import Camera, MaterialInstance, MeshData, Node, Scene  # noqa: E402
 
 DEFAULT_AREAS = (0.5, 1, 2, 4, 8, 16, 32, 64, 128, 256, 1024, 4096, 16384)
@@ -84,11 +85,14 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--method", default="presort_lf", help="one-pass A-buffer method (no early termination: all stored)"
     )
+    ap.add_argument("--tile", type=int, default=TILE, help="tile edge of the compute large-triangle path")
+    ap.add_argument("--small-area", type=int, default=SMALL_AREA, help="largest box one compute thread rasterizes")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     w = h = args.size
     hardware = Renderer("exact", method=args.method, method_overrides={"raster": "hardware"})
     compute = Renderer("exact", ctx=hardware.ctx, method=args.method, method_overrides={"raster": "compute"})
+    compute.raster.compute.tile, compute.raster.compute.small_area = args.tile, args.small_area
     renderers = {"hardware": hardware, "compute": compute}
     caps = renderers["hardware"].caps
     rows = []
@@ -140,6 +144,8 @@ def main(argv=None) -> int:
         "frames": args.frames,
         "warmup": args.warmup,
         "auto_max_mean_area_px": AUTO_MAX_MEAN_AREA_PX,
+        "tile": args.tile,
+        "small_area": args.small_area,
         "rows": rows,
     }
     (args.out / "raster_sweep.json").write_text(json.dumps(result, indent=2))

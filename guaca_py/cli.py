@@ -70,7 +70,6 @@ def _cmd_render(args) -> int:
 
 def _cmd_info(args) -> int:
     from .context import create_context
-
     from .raster.choice import device_rule
 
     _, caps = create_context()

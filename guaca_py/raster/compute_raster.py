@@ -75,6 +75,9 @@ class ComputeRasterizer:
         self._fresh = True  # the next draw starts a geometry pass: reset the state
         self._triangles = 0
         self.regrown = 0
+        self.tile = TILE  # tunable per renderer (benchmarks/raster_sweep.py --tile, --small-area)
+        self.small_area = SMALL_AREA
+        self._materials: dict[int, tuple] = {}  # id(material) -> (material, ComputeMaterial)
 
     # ------------------------------------------------------------------ programs
     def _common(self, draw) -> dict:
@@ -83,24 +86,37 @@ class ComputeRasterizer:
     def _raster_vars(self) -> dict:
         return {
             "raster_state_words": STATE_WORDS,
-            "raster_tile": TILE,
-            "raster_small_area": SMALL_AREA,
+            "raster_tile": self.tile,
+            "raster_small_area": self.small_area,
             "raster_depth_unit": DEPTH_UNIT,
         }
 
+    def _compute_material(self, mat):
+        hit = self._materials.get(id(mat))
+        if hit is None or hit[0] is not mat:
+            hit = self._materials[id(mat)] = (mat, compute_material(mat))
+        return hit[1]
+
     def material_problem(self, draw) -> str | None:
         """Why `draw`'s material cannot run in the compute host (None: it can)."""
-        return compute_material(draw.material).problem
+        return self._compute_material(draw.material).problem
 
     def _programs(self, draw):
         """(vertex, setup, fine) kernels for the draw's material and the current method, compiled once."""
         mat, method = draw.material, self.renderer.method
-        cm = compute_material(mat)
+        cm = self._compute_material(mat)
         if cm.problem:
             raise ConfigError(cm.problem, mat.path, None, "transparency.raster")
         mvars = method.template_vars()
         label = f"material '{mat.name}'"
-        key = ("compute_raster", str(mat.path), method.id, tuple(sorted((k, str(v)) for k, v in mvars.items())))
+        key = (
+            "compute_raster",
+            str(mat.path),
+            method.id,
+            tuple(sorted((k, str(v)) for k, v in mvars.items())),
+            self.tile,
+            self.small_area,
+        )
         shaders = self.renderer.shaders
         progs = []
         for stage, template in (
@@ -151,7 +167,7 @@ class ComputeRasterizer:
     def _begin(self, frame, draws) -> None:
         """First draw of a geometry pass: size the buffers to the frame, reset the state on the GPU."""
         ctx = self.ctx
-        tiles = math.ceil(frame.width / TILE) * math.ceil(frame.height / TILE)
+        tiles = math.ceil(frame.width / self.tile) * math.ceil(frame.height / self.tile)
         triangles = max(d.mesh.triangle_count for d in draws)
         vertices = max(len(d.mesh.positions) for d in draws)
         large = self._want.pop("large", 0) or max(self.large_capacity, 1024, triangles // 8)
