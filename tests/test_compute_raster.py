@@ -5,6 +5,8 @@ derivatives, methods that refuse it, its overflow handling and the `auto` rule."
 from __future__ import annotations
 
 import colorsys
+import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -307,3 +309,59 @@ def test_auto_rule(renderer_factory):
     assert r.method.settings["raster"] == "auto"
     expected = "compute" if (not r.caps.software and area <= AUTO_MAX_MEAN_AREA_PX) else "hardware"
     assert frame.stats["raster"][f"{expected}_draws"] == 1 and "rule" in frame.stats["raster"]
+
+
+def test_auto_mixes_both_rasterizers_in_one_frame(renderer_factory):
+    # as on a GPU: small triangles go through compute, large quads through the hardware, all into
+    # one A-buffer; the composite is exact either way
+    import dataclasses
+
+    r = renderer_factory("exact", method="presort_lf_et", method_overrides={"raster": "auto"})
+    r.caps = dataclasses.replace(r.caps, software=False)
+    fine = Node(
+        "fine",
+        Transform((0.0, 0.0, 0.5), (0.0, 0.0, 5.0)),
+        tessellated_plane(40, 3.0, 0.2),
+        unlit((0.9, 0.8, 0.1), 0.4),
+    )
+    plain = Node(
+        "plain",
+        Transform((0.0, 0.0, 0.5), (0.0, 0.0, 5.0)),
+        tessellated_plane(1, 3.0, 0.0),
+        unlit((0.9, 0.8, 0.1), 0.4),
+    )
+    layers = layered_quads_scene(n_layers=8, order="shuffled", seed=4)
+    frame = r.render(simple_scene([*layers.nodes, fine], background=layers.background), 64, 64)
+    info = frame.stats["raster"]
+    assert info["compute_draws"] == 1 and info["hardware_draws"] == 8, info
+    ref, mask, _ = _REFS.of("mixed", simple_scene([*layers.nodes, plain], background=layers.background), 64, 64)
+    assert compare(frame.image, ref, mask)["max_abs_255"] <= 2.0
+
+
+def test_gpu_variants_generate_compute_kernels(renderer_factory):
+    # the 64-bit insertion (NVIDIA) cannot compile here: check the generated kernel as text, for
+    # fragment-only built-ins that would break it and for the extension lines' place
+    from guaca_py.methods import method_class
+    from guaca_py.pipeline.drawlist import build_draw_list
+
+    r = renderer_factory("exact", method="presort_lf_et", method_overrides={"raster": "compute"})
+    caps = dataclasses.replace(r.caps, atomic_int64=True)
+    m = method_class("presort_lf_et")(dict(r.method.settings), caps)
+    assert m.path == "64bit"
+    r.method, saved = m, r.method
+    try:
+        draw = build_draw_list(layered_quads_scene(n_layers=2), r.materials)[0]
+        cr = r.raster.compute
+        cr.renderer.shaders.program = lambda key, stages, smap, label: stages  # capture, do not compile
+        stages = [s["compute_shader"] for s in cr._programs(draw)]
+    finally:
+        r.method = saved
+        del cr.renderer.shaders.program
+    for template, variables in stages[1:]:
+        src = r.shaders.render(template, **variables)
+        code = re.sub(r"//[^\n]*", "", src)
+        assert src.startswith("#version 450 core\n#extension GL_ARB_gpu_shader_int64 : require\n#extension GL_ARB")
+        assert "GL_NV_shader_atomic_int64" in src
+        assert "uint64_t gua_links[]" in src and "gua_submit_at(pix, z," in src
+        for builtin in ("gl_FragCoord", "gl_HelperInvocation", "gl_PrimitiveID", "gl_FrontFacing", "dFdx"):
+            assert builtin not in code, (template, builtin)
