@@ -48,7 +48,7 @@ STATE_WORDS = (
     "jobs_dropped",
 )
 TILE = 8  # tile edge in pixels of the large-triangle path (one 64-thread workgroup per job, as L&K's fine raster)
-SMALL_AREA = 64  # candidate boxes up to this many pixels are rasterized by one thread
+SMALL_AREA = 128  # candidate boxes up to this many pixels are rasterized by one thread
 DEPTH_UNIT = 7  # texture unit of the G-buffer depth (units 8+ hold material textures)
 VERTEX_RECORD_BYTES = 48  # window-homogeneous position, world position + u, normal + v
 MAX_REGROW = 2  # re-renders one frame may take to grow the queue or the job list
