@@ -70,11 +70,12 @@ def _cmd_render(args) -> int:
 
 def _cmd_info(args) -> int:
     from .context import create_context
+    from .raster.choice import device_rule
 
     _, caps = create_context()
     d = caps.as_dict()
     if args.json:
-        print(json.dumps(dict(d, insertion_path=caps.insertion_path), indent=2))
+        print(json.dumps(dict(d, insertion_path=caps.insertion_path, raster_auto=device_rule(caps)), indent=2))
         return 0
     print(f"device:    {caps.renderer}")
     print(f"vendor:    {caps.vendor}")
@@ -85,6 +86,7 @@ def _cmd_info(args) -> int:
         f"A-buffer insertion path: {caps.insertion_path} "
         f"({'64-bit atomicMax on (depth, pointer)' if caps.insertion_path == '64bit' else '32-bit CAS on immutable nodes'})"
     )
+    print(f"transparent raster (raster: auto): {device_rule(caps)}")
     return 0
 
 

@@ -28,6 +28,7 @@ class PreSortLF(TransparencyMethod):
     geometry_passes = "1"
     early_termination = False
     summary = "sorted lock-free insertion into per-pixel lists (no early termination)"
+    compute_raster = True  # insertion is gua_submit_at(pix, depth, tie): callable from compute kernels
     counters: tuple[str, ...] = COUNTERS  # counter words of the counter buffer, in layout order
     extra_slots = 0  # per-pixel link words after the node links (second list heads, locks)
     SETTINGS = {

@@ -61,6 +61,7 @@ class GeometryPass(Pass):
             method.render_transparent(frame)
             self.ctx.memory_barrier()
             frame.rerender = method.finish(frame)
+            frame.rerender = self.renderer.raster.finish(frame) or frame.rerender
         elif not has_transparency:
             frame.stats["fragments"] = {"stored": 0}
         self.ctx.depth_func = "<"
