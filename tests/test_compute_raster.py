@@ -396,3 +396,20 @@ def test_small_random_triangles_match_hardware_coverage(renderer_factory, area):
     # slivers of any area can have large boxes; at 3 px² nearly all go through the one-thread path
     assert st["large_triangles"] < (0.1 if area < 20 else 0.9) * n and st["large_triangles"] > 0, st
     assert differing(c.image, h.image).mean() < 0.05
+
+
+def test_command_line_set_and_info(capsys, tmp_path):
+    import json
+
+    from guaca_py.cli import main
+
+    assert main(["info"]) == 0
+    assert "transparent raster (raster: auto):" in capsys.readouterr().out
+    args = ["render", "--pipeline", "exact", "--width", "48", "--height", "40", "--out", str(tmp_path / "o.png")]
+    assert main([*args, "--set", "raster=compute", "--stats", str(tmp_path / "s.json")]) == 0
+    out = capsys.readouterr().out
+    stats = json.loads((tmp_path / "s.json").read_text())
+    assert stats["raster"]["setting"] == "compute" and stats["raster"]["compute_draws"] > 0
+    assert "transparent raster (compute)" in out and stats["memory"]["raster_vertices"] > 0
+    assert main([*args, "--method", "depth_peeling", "--set", "raster=compute"]) == 2
+    assert "depth_peeling" in capsys.readouterr().err
