@@ -393,8 +393,10 @@ def test_small_random_triangles_match_hardware_coverage(renderer_factory, area):
     sc, sh = c.stats["fragments"]["stored"], h.stats["fragments"]["stored"]
     assert sh > 0.5 * n * area and abs(sc - sh) <= 0.005 * sh, (sc, sh)
     st = c.stats["raster"]["compute"]
-    # slivers of any area can have large boxes; at 3 px² nearly all go through the one-thread path
+    # slivers of any area can have large boxes; at 3 px² nearly all go through the one-thread path,
+    # at 40 px² many through a workgroup each, some through tiles: all three paths ran
     assert st["large_triangles"] < (0.1 if area < 20 else 0.9) * n and st["large_triangles"] > 0, st
+    assert 0 < st["tiled_triangles"] < st["large_triangles"] and st["tile_jobs"] > 0, st
     assert differing(c.image, h.image).mean() < 0.05
 
 
