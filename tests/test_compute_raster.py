@@ -367,13 +367,9 @@ def test_gpu_variants_generate_compute_kernels(renderer_factory):
             assert builtin not in code, (template, builtin)
 
 
-@pytest.mark.parametrize("area", [3.0, 40.0])
-def test_small_random_triangles_match_hardware_coverage(renderer_factory, area):
-    # 2000 random triangles of a few pixels (the hairball's regime), every orientation and shape:
-    # the one-thread path (and, at 40 px², the tile path too) stores the fragments the hardware
-    # rasterizer makes, up to pixel centres within a rounding step of an edge
-    rng = np.random.default_rng(int(area))
-    n, w = 2000, 96
+def random_triangles(n: int, w: int, area: float, alpha: float, seed: int):
+    """n random triangles of `area` px² (any shape, orientation) at z in [-0.3, 0.3], seen at w x w."""
+    rng = np.random.default_rng(seed)
     px = 2.0 * 5.0 * np.tan(np.radians(25.0)) / w  # world size of a pixel at z=0
     centre = rng.uniform(-0.5, 0.5, (n, 1, 2)) * w * px
     corners = rng.normal(size=(n, 3, 2))
@@ -387,7 +383,16 @@ def test_small_random_triangles_match_hardware_coverage(renderer_factory, area):
         np.zeros((len(pos), 2), np.float32),
         np.arange(len(pos), dtype=np.uint32).reshape(-1, 3),
     )
-    scene = simple_scene([Node("tris", mesh=mesh, material=unlit((0.8, 0.4, 0.2), 0.3))])
+    return simple_scene([Node("tris", mesh=mesh, material=unlit((0.8, 0.4, 0.2), alpha))])
+
+
+@pytest.mark.parametrize("area", [3.0, 40.0])
+def test_small_random_triangles_match_hardware_coverage(renderer_factory, area):
+    # 2000 random triangles of a few pixels (the hairball's regime), every orientation and shape:
+    # the one-thread path (and, at 40 px², the tile path too) stores the fragments the hardware
+    # rasterizer makes, up to pixel centres within a rounding step of an edge
+    n, w = 2000, 96
+    scene = random_triangles(n, w, area, 0.3, int(area))
     compute, hardware = both(renderer_factory, "presort_lf")
     c, h = compute.render(scene, w, w), hardware.render(scene, w, w)
     sc, sh = c.stats["fragments"]["stored"], h.stats["fragments"]["stored"]
@@ -398,6 +403,20 @@ def test_small_random_triangles_match_hardware_coverage(renderer_factory, area):
     assert st["large_triangles"] < (0.1 if area < 20 else 0.9) * n and st["large_triangles"] > 0, st
     assert 0 < st["tiled_triangles"] < st["large_triangles"] and st["tile_jobs"] > 0, st
     assert differing(c.image, h.image).mean() < 0.05
+
+
+@pytest.mark.parametrize("method", ["presort_lf_et", "presort_lf_merge2_et", "post_sort"])
+def test_stored_equals_the_lists_with_many_fragments_per_thread(renderer_factory, method):
+    # one compute invocation submits many fragments, some stored, some refused by early
+    # termination: the derived 'stored' must still equal the nodes the lists hold
+    from test_counters import _linked_nodes
+
+    scene = random_triangles(3000, 64, 12.0, 0.6, 11)
+    r = renderer_factory("exact", method=method, method_overrides={"raster": "compute", "threshold": 0.9})
+    fr = r.render(scene, 64, 64).stats["fragments"]
+    assert fr["stored"] == _linked_nodes(r.method), fr
+    if method != "post_sort":
+        assert fr["et_dropped"] > 0, fr
 
 
 def test_command_line_set_and_info(capsys, tmp_path):
