@@ -133,7 +133,7 @@ def main(argv=None) -> int:
         ratio = hw["geometry_ms"] / cs["geometry_ms"] if cs["geometry_ms"] else float("nan")
         print(
             f"{area:>9g} {measured:>9.2f} {count:>10} {cs['fragments']:>11} {hw['geometry_ms']:>9.3f} "
-            f"{cs['geometry_ms']:>9.3f} {hw['gfrag_per_s']:>11.3f} {cs['gfrag_per_s']:>11.3f} {ratio:>6.2f}"
+            f"{cs['geometry_ms']:>9.3f} {hw['gfrag_per_s']:>11.4g} {cs['gfrag_per_s']:>11.4g} {ratio:>6.2f}"
         )
         scene.nodes.clear()
         for r in renderers.values():

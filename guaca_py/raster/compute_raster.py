@@ -77,6 +77,7 @@ class ComputeRasterizer:
         self.job_capacity = 0  # (triangle, tile) jobs per draw
         self._want: dict[str, int] = {}
         self._fresh = True  # the next draw starts a geometry pass: reset the state
+        self._frame = None  # the frame being drawn (a new one always starts afresh)
         self._triangles = 0
         self.regrown = 0
         self.tile = TILE  # tunable per renderer (benchmarks/raster_sweep.py --tile, --small-area)
@@ -211,9 +212,9 @@ class ComputeRasterizer:
         """Rasterize `draws` into the method's storage (bound by the method, as for hardware draws)."""
         if not draws:
             return
-        if self._fresh:
+        if self._fresh or self._frame is not frame:
             self._begin(frame, draws)
-            self._fresh = False
+            self._fresh, self._frame = False, frame
         ctx, r = self.ctx, self.renderer
         frame.resources["gbuffer"]["depth"].use(location=DEPTH_UNIT)
         args = self._kernel("raster/args.comp.j2")
@@ -267,9 +268,9 @@ class ComputeRasterizer:
 
     def finish(self, frame) -> bool:
         """Totals into frame.stats; after an overflow, grow and ask for the frame again (MAX_REGROW times)."""
-        if self._fresh:  # nothing drawn through compute in this pass
+        if self._fresh or self._frame is not frame:  # nothing drawn through compute in this pass
             return False
-        self._fresh = True
+        self._fresh, self._frame = True, None
         self.ctx.copy_buffer(self._readback, self._state)
         c = dict(zip(STATE_WORDS, np.frombuffer(self._readback.read(), dtype=np.uint32).tolist()))
         frame.stats.setdefault("raster", {})["compute"] = {
@@ -315,4 +316,4 @@ class ComputeRasterizer:
             self._release(b)
         self._state = self._readback = self._verts = self._large = self._jobs = None
         self.vertex_capacity = self.large_capacity = self.job_capacity = 0
-        self._fresh = True
+        self._fresh, self._frame = True, None
