@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from ..pipeline.settings import Setting
@@ -20,7 +22,7 @@ RASTER_SETTING = Setting(
 AUTO_MAX_MEAN_AREA_PX = 64.0
 SAMPLE_TRIANGLES = 1024  # triangles per mesh sampled for the estimate (fixed seed, cached)
 
-_samples: dict[int, tuple[object, np.ndarray]] = {}
+_samples: dict[int, tuple[weakref.ref, np.ndarray]] = {}  # id(mesh) -> (weak mesh, sample): meshes may go
 
 
 def auto_rule() -> str:
@@ -41,13 +43,14 @@ def device_rule(caps) -> str:
 def _sample(mesh) -> np.ndarray:
     """A fixed sample of the mesh's triangles as object-space corner positions (k, 3, 3), cached."""
     hit = _samples.get(id(mesh))
-    if hit is not None and hit[0] is mesh:
+    if hit is not None and hit[0]() is mesh:
         return hit[1]
     idx = np.asarray(mesh.indices).reshape(-1, 3)
     if len(idx) > SAMPLE_TRIANGLES:
         idx = idx[np.random.default_rng(0).choice(len(idx), SAMPLE_TRIANGLES, replace=False)]
     tris = np.asarray(mesh.positions, dtype=np.float64)[idx]
-    _samples[id(mesh)] = (mesh, tris)
+    key = id(mesh)
+    _samples[key] = (weakref.ref(mesh, lambda _ref, key=key: _samples.pop(key, None)), tris)
     return tris
 
 
