@@ -7,6 +7,7 @@ from __future__ import annotations
 import colorsys
 import dataclasses
 import re
+import shutil
 
 import numpy as np
 import pytest
@@ -434,3 +435,46 @@ def test_command_line_set_and_info(capsys, tmp_path):
     assert "transparent raster (compute)" in out and stats["memory"]["raster_vertices"] > 0
     assert main([*args, "--method", "depth_peeling", "--set", "raster=compute"]) == 2
     assert "depth_peeling" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(shutil.which("glslangValidator") is None, reason="glslangValidator (glslang-tools) not installed")
+@pytest.mark.parametrize("method", ["presort_lf_et", "presort_lf_merge2_et"])
+def test_gpu_variants_pass_the_reference_compiler(renderer_factory, tmp_path, method):
+    # the NVIDIA variants (64-bit insertion, subgroup ballots) of every kernel, with every built-in
+    # material made transparent, through Khronos' reference compiler (this device cannot
+    # compile them)
+    import subprocess
+
+    from guaca_py.methods import method_class
+    from guaca_py.pipeline.drawlist import build_draw_list
+    from guaca_py.renderer import method_settings
+
+    r = renderer_factory("exact", method=method, method_overrides={"raster": "compute"})
+    extra = {"shader_ballot": True} if hasattr(r.caps, "shader_ballot") else {}
+    caps = dataclasses.replace(r.caps, atomic_int64=True, **extra)
+    m = method_class(method)(method_settings(method, {"raster": "compute"}), caps)
+    cr = r.raster.compute
+    r.method, saved = m, r.method
+    try:
+        cr.renderer.shaders.program = lambda key, stages, smap, label: stages  # capture, do not compile
+        mats = {
+            "pbr": {"alpha": 0.5},
+            "fresnel_glass": {},
+            "lens_fade_out": {},
+            "pbr_textured": {},
+            "unlit": {"alpha": 0.5},
+        }
+        scene = simple_scene([quad_node(k, 0.0, (1, 1, 1), 0.5) for k in mats])
+        for node in scene.nodes:
+            node.material = MaterialInstance(node.name, mats[node.name])
+        draws = build_draw_list(scene, r.materials)
+        stages = [s["compute_shader"] for d in draws for s in cr._programs(d)]
+    finally:
+        r.method = saved
+        del cr.renderer.shaders.program
+    assert all(d.transparent for d in draws) and len(stages) == 4 * len(mats)
+    for i, (template, variables) in enumerate(stages):
+        path = tmp_path / f"k{i}.comp"
+        path.write_text(r.shaders.render(template, **variables))
+        run = subprocess.run(["glslangValidator", "-S", "comp", str(path)], capture_output=True, text=True)
+        assert run.returncode == 0, (template, run.stdout[-2000:])
