@@ -91,10 +91,11 @@ def test_compute_matches_reference_and_hardware(renderer_factory, method):
         assert c.stats["raster"]["compute_draws"] > 0 and c.stats["raster"]["hardware_draws"] == 0
         assert c.stats["fragments"]["overflow"] == 0 and c.stats["fragments"]["guard_abandoned"] == 0
         # the two rasterizers differ only along triangle edges, and there in a handful of pixels
+        # (llvmpipe: 0-3 of 9216; the bound leaves room for another GPU's snapping of vertices)
         diff = differing(c.image, h.image)
         assert not (diff & ~mask).any(), (key, np.argwhere(diff & ~mask)[:5])
-        assert diff.sum() <= 0.002 * SIZE * SIZE, (key, int(diff.sum()))
-        assert abs(c.stats["fragments"]["stored"] - h.stats["fragments"]["stored"]) <= 0.002 * layers.sum()
+        assert diff.sum() <= 0.005 * SIZE * SIZE, (key, int(diff.sum()))
+        assert abs(c.stats["fragments"]["stored"] - h.stats["fragments"]["stored"]) <= 0.005 * layers.sum()
 
 
 def test_early_termination_with_compute(renderer_factory):
@@ -155,7 +156,7 @@ def test_triangle_crossing_the_near_plane(renderer_factory):
     c, h = compute.render(scene, SIZE, SIZE), hardware.render(scene, SIZE, SIZE)
     assert compare(c.image, ref, mask)["max_abs_255"] <= 2.0
     diff = differing(c.image, h.image)
-    assert not (diff & ~mask).any() and diff.sum() <= 0.002 * SIZE * SIZE
+    assert not (diff & ~mask).any() and diff.sum() <= 0.005 * SIZE * SIZE
 
 
 def test_back_faces_like_the_fragment_host(renderer_factory, tmp_path):
