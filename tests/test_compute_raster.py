@@ -359,6 +359,7 @@ def test_gpu_variants_generate_compute_kernels(renderer_factory):
     finally:
         r.method = saved
         del cr.renderer.shaders.program
+        cr._program_sets.clear()  # the captured stages are no programs
     for template, variables in stages[1:]:
         src = r.shaders.render(template, **variables)
         code = re.sub(r"//[^\n]*", "", src)
@@ -473,6 +474,7 @@ def test_gpu_variants_pass_the_reference_compiler(renderer_factory, tmp_path, me
     finally:
         r.method = saved
         del cr.renderer.shaders.program
+        cr._program_sets.clear()  # the captured stages are no programs
     assert all(d.transparent for d in draws) and len(stages) == 4 * len(mats)
     for i, (template, variables) in enumerate(stages):
         path = tmp_path / f"k{i}.comp"

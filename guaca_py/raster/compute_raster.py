@@ -84,6 +84,7 @@ class ComputeRasterizer:
         self.small_area = SMALL_AREA
         self.medium_area = MEDIUM_AREA
         self._materials: dict[int, tuple] = {}  # id(material) -> (material, ComputeMaterial)
+        self._program_sets: dict[tuple, tuple] = {}  # program key -> the four kernels (built once)
 
     # ------------------------------------------------------------------ programs
     def _common(self, draw) -> dict:
@@ -125,6 +126,9 @@ class ComputeRasterizer:
             self.small_area,
             self.medium_area,
         )
+        hit = self._program_sets.get(key)
+        if hit is not None:
+            return hit
         shaders = self.renderer.shaders
         progs = []
         for stage, template in (
@@ -167,7 +171,8 @@ class ComputeRasterizer:
                     label=f"{label} ({mat.path}), compute raster {stage}",
                 )
             )
-        return progs
+        self._program_sets[key] = tuple(progs)
+        return self._program_sets[key]
 
     def _kernel(self, template: str):
         return self.renderer.shaders.compute(template, **self._raster_vars())
