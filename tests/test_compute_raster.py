@@ -313,11 +313,12 @@ def test_auto_rule(renderer_factory):
     assert frame.stats["raster"][f"{expected}_draws"] == 1 and "rule" in frame.stats["raster"]
 
 
-def test_auto_mixes_both_rasterizers_in_one_frame(renderer_factory):
-    # as on a GPU: small triangles go through compute, large quads through the hardware, all into
-    # one A-buffer; the composite is exact either way
-    import dataclasses
+def test_auto_mixes_both_rasterizers_in_one_frame(renderer_factory, monkeypatch):
+    # as on a GPU with a threshold between the two sizes: small triangles go through compute, large
+    # quads through the hardware, all into one A-buffer; the composite is exact either way
+    from guaca_py.raster import choice
 
+    monkeypatch.setattr(choice, "AUTO_MAX_MEAN_AREA_PX", 64.0)
     r = renderer_factory("exact", method="presort_lf_et", method_overrides={"raster": "auto"})
     r.caps = dataclasses.replace(r.caps, software=False)
     fine = Node(
