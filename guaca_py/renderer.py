@@ -9,8 +9,9 @@ import moderngl
 import numpy as np
 
 from .context import create_context
-from .errors import ConfigError, UnsupportedMethodError
+from .errors import ConfigError, GuacaError, UnsupportedMethodError
 from .gpu_resources import MeshCache, TextureCache
+from .host_state import ContextGuard, native, on_context
 from .materials import MaterialRegistry
 from .methods import method_class, method_ids
 from .passes import PASS_TYPES
@@ -18,6 +19,7 @@ from .pipeline.config import PipelineConfig, load_pipeline
 from .pipeline.drawlist import build_draw_list
 from .pipeline.frame import FrameResult, FrameState, mat_bytes
 from .pipeline.settings import resolve_settings
+from .present import Presenter
 from .scene.graph import Scene
 from .shaders import ShaderLibrary, SourceMap
 
@@ -36,7 +38,12 @@ def method_settings(mid: str, base: dict, overrides: dict | None = None, source:
 
 
 class Renderer:
-    """Renders Scenes through a pipeline config. Reuse one Renderer across frames."""
+    """Renders Scenes through a pipeline config. Reuse one Renderer across frames.
+
+    With `ctx=None` it makes its own headless context (freed by release()); with a host's
+    moderngl context it draws there, and every public call makes that context current and
+    gives the host back the GL state it found (guaca_py/host_state.py lists what that covers).
+    """
 
     moderngl = moderngl
 
@@ -51,13 +58,35 @@ class Renderer:
         template_paths: list[str | Path] | None = None,
         disable: tuple[str, ...] = (),
     ):
-        self.ctx, self.caps = create_context(ctx, disable)
+        previous = native().current()  # creating a context makes it current: the host's comes back
+        self.owns_context = ctx is None
+        if self.owns_context:
+            self.ctx, self.caps = create_context(None, disable)  # a new context is current
+            self._gl = ContextGuard(self.ctx, restore_state=False)
+        else:
+            self._gl = ContextGuard(ctx, restore_state=True)
+            with self._gl():  # capabilities (and moderngl's cached ctx.info) must come from this context
+                self.ctx, self.caps = create_context(ctx, disable)
+        try:
+            with self._gl():
+                self._build(pipeline, method, method_overrides, material_paths, template_paths)
+        except BaseException:
+            if self.owns_context:
+                self.ctx.release()
+            raise
+        finally:
+            if previous is not None and self.owns_context:
+                native().make_current(previous)
+
+    def _build(self, pipeline, method, method_overrides, material_paths, template_paths) -> None:
         self.config = load_pipeline(pipeline)
         self.shaders = ShaderLibrary(self.ctx, template_paths)
         self.materials = MaterialRegistry(material_paths)
         self.meshes = MeshCache(self.ctx)
         self.textures = TextureCache(self.ctx)
         self._fullscreen_vaos: dict[int, object] = {}
+        self.presenter = Presenter(self)
+        self.frame_serial = 0  # frames rendered; a FrameResult's texture is valid while this is unchanged
         self.set_method(method or self.config.transparency["method"], method_overrides)
         self.passes = [PASS_TYPES[p.name](self, p.settings) for p in self.config.passes]
         available = set(_FIRST_RESOURCES)
@@ -72,6 +101,7 @@ class Renderer:
                 )
             available |= set(p.writes)
 
+    @on_context
     def set_method(self, mid: str, overrides: dict | None = None) -> None:
         """Switch the transparency method (settings shared with the config carry over)."""
         if mid not in method_ids():
@@ -190,8 +220,27 @@ class Renderer:
         self.ctx.finish()
         return (time.perf_counter() - t0) * 1e3, "wall"
 
-    def render(self, scene: Scene, width: int | None = None, height: int | None = None) -> FrameResult:
-        """Render one frame of `scene` and read it back."""
+    @on_context
+    def render(
+        self,
+        scene: Scene,
+        width: int | None = None,
+        height: int | None = None,
+        *,
+        target=None,
+        viewport: tuple[int, int, int, int] | None = None,
+        read_back: bool = True,
+        stats: bool = True,
+    ) -> FrameResult:
+        """Render one frame of `scene`; optionally draw it into `target`; read it back unless `read_back=False`.
+
+        `target` is a moderngl Framebuffer (e.g. the host's screen) or Texture the frame is
+        drawn into (scaled to `viewport`, default the whole target) without leaving the GPU.
+        With `read_back=False` nothing is copied to the CPU: `FrameResult.texture` holds the
+        frame until the next render and `FrameResult.image` reads it on first access.
+        `stats=False` skips per-pass timing (no timer queries or GPU syncs); the counters the
+        transparency method gathers are still reported.
+        """
         w, h = width or self.config.resolution[0], height or self.config.resolution[1]
         cam = scene.camera
         draws = build_draw_list(scene, self.materials)
@@ -212,7 +261,11 @@ class Renderer:
         for p in self.passes:
             for _attempt in range(1 + 16):
                 warned = len(frame.stats.get("warnings", []))
-                ms, kind = self._timed(lambda p=p: p.execute(frame))
+                if stats:
+                    ms, kind = self._timed(lambda p=p: p.execute(frame))
+                else:
+                    p.execute(frame)
+                    ms, kind = 0.0, "off"
                 if not frame.rerender:
                     break
                 frame.rerender = False
@@ -230,21 +283,55 @@ class Renderer:
                 "a pass took longer than the 32-bit GPU timer result can hold (4.29 s); its time is clipped"
             )
         frame.stats["frame_wall_ms"] = round((time.perf_counter() - t0) * 1e3, 3)
-        return self._read_back(frame)
-
-    def _read_back(self, frame) -> FrameResult:
+        self.meshes.end_frame()
+        self.textures.end_frame()
+        self.frame_serial += 1
         tex = frame.resources["color"]
-        if tex.dtype == "f4":
-            lin = np.frombuffer(tex.read(), dtype=np.float32).reshape(frame.height, frame.width, 4)[::-1, :, :3]
-            img = np.clip(np.rint(np.clip(lin, 0.0, 1.0) * 255.0), 0, 255).astype(np.uint8)
-            return FrameResult(np.ascontiguousarray(img), frame.stats, np.ascontiguousarray(lin))
-        img = np.frombuffer(tex.read(), dtype=np.uint8).reshape(frame.height, frame.width, 4)[::-1, :, :3]
-        return FrameResult(np.ascontiguousarray(img), frame.stats)
+        if target is not None:
+            self.presenter.draw(tex, target, viewport)
+        result = FrameResult(None, frame.stats, texture=tex, reader=self._reader(tex, self.frame_serial))
+        if read_back:
+            result.read()
+        return result
 
-    def release(self) -> None:
-        """Free every GPU resource the renderer holds."""
+    def _reader(self, tex, serial: int):
+        """A function reading `tex` (the frame numbered `serial`) back as (image, linear or None)."""
+
+        @on_context
+        def read(self) -> tuple[np.ndarray, np.ndarray | None]:
+            if self.frame_serial != serial or tex.glo <= 0:
+                raise GuacaError(
+                    "this frame's texture was reused by a later render (or the renderer was released); "
+                    "read frame.image before the next render, or render with read_back=True"
+                )
+            h, w = tex.height, tex.width
+            if tex.dtype == "f4":
+                lin = np.frombuffer(tex.read(), dtype=np.float32).reshape(h, w, 4)[::-1, :, :3]
+                img = np.clip(np.rint(np.clip(lin, 0.0, 1.0) * 255.0), 0, 255).astype(np.uint8)
+                return np.ascontiguousarray(img), np.ascontiguousarray(lin)
+            img = np.frombuffer(tex.read(), dtype=np.uint8).reshape(h, w, 4)[::-1, :, :3]
+            return np.ascontiguousarray(img), None
+
+        return lambda: read(self)
+
+    @on_context
+    def _release_gpu(self) -> None:
         for p in self.passes:
             p.release()
         self.method.release()
         self.meshes.release()
         self.textures.release()
+        for vao in self._fullscreen_vaos.values():
+            vao.release()
+        self._fullscreen_vaos.clear()
+        self.shaders.release()
+
+    def release(self) -> None:
+        """Free every GPU resource the renderer holds, and its context when it made its own."""
+        if getattr(self, "released", False):
+            return
+        self._release_gpu()
+        self.frame_serial += 1  # outstanding FrameResults can no longer read their texture
+        self.released = True
+        if self.owns_context:
+            self.ctx.release()
