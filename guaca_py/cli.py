@@ -17,9 +17,10 @@ def _parse_value(text: str):
 
 def _cmd_render(args) -> int:
     from .renderer import Renderer
-    from .scene.loader import demo_scene, load_scene
+    from .scene.files import load_any
+    from .scene.loader import demo_scene
 
-    scene = load_scene(args.scene) if args.scene else demo_scene()
+    scene = load_any(args.scene) if args.scene else demo_scene()  # YAML, glTF or a mesh file
     overrides = {}
     for item in args.set or []:
         if "=" not in item:
