@@ -94,21 +94,17 @@ _BUFFER_TARGETS = {
     0x8A28: 0x8A11,  # UNIFORM_BUFFER (generic)
     0x92C1: 0x92C0,  # ATOMIC_COUNTER_BUFFER (generic)
 }
-# Indexed buffer binding points: target -> (binding, start, size, max-count query, cap).
+# Indexed buffer binding points guaca binds: target -> (binding, start, size, max-count query, slots saved).
+# (guaca binds storage buffers below 16 and never binds uniform or atomic-counter buffers by index.)
 _INDEXED_BUFFERS = {
-    0x90D2: (0x90D3, 0x90D4, 0x90D5, 0x90DD, 32),  # SHADER_STORAGE_BUFFER
-    0x8A11: (0x8A28, 0x8A29, 0x8A2A, 0x8A2F, 32),  # UNIFORM_BUFFER
-    0x92C0: (0x92C1, 0x92C2, 0x92C3, 0x92DC, 8),  # ATOMIC_COUNTER_BUFFER
+    0x90D2: (0x90D3, 0x90D4, 0x90D5, 0x90DD, 16),  # SHADER_STORAGE_BUFFER
 }
-# Texture targets saved per unit: (binding query, target).
+# Texture targets guaca binds (2D, and 2D arrays for the light grid): (binding query, target).
 _TEXTURE_TARGETS = (
     (0x8069, 0x0DE1),  # 2D
     (0x8C1D, 0x8C1A),  # 2D_ARRAY
-    (0x806A, 0x806F),  # 3D
-    (0x8514, 0x8513),  # CUBE_MAP
-    (0x9104, 0x9100),  # 2D_MULTISAMPLE
 )
-_TEXTURE_UNITS = 32  # units 0..31 plus moderngl's default unit (where it uploads textures)
+_TEXTURE_UNITS = 32  # units 0..31 (passes 0-7, materials 8+, light grid 31) plus moderngl's default unit
 _IMAGE_UNITS = 16
 _IMAGE = (0x8F3A, 0x8F3B, 0x8F3C, 0x8F3D, 0x8F3E, 0x906E)  # name, level, layered, layer, access, format
 
@@ -152,7 +148,6 @@ _SIGNATURES = {
     "glClipControl": (None, [_u, _u]),
     "glActiveTexture": (None, [_u]),
     "glBindTexture": (None, [_u, _u]),
-    "glBindSampler": (None, [_u, _u]),
     "glBindBuffer": (None, [_u, _u]),
     "glBindBufferBase": (None, [_u, _u, _u]),
     "glBindBufferRange": (None, [_u, _u, _u, ctypes.c_ssize_t, ctypes.c_ssize_t]),
@@ -246,11 +241,13 @@ class HostGLState:
     blend enable/functions/equations per draw buffer and blend colour, colour write masks per
     draw buffer, depth test/function/write mask/range, clear colour/depth/stencil, cull face
     enable/mode, front face, polygon mode and offset, provoking vertex, clip control and clip
-    distances, the capabilities in `_CAPS`, the active texture unit, 2D/2D-array/3D/cube/2D-MS
-    texture and sampler bindings on units 0-31 and moderngl's default unit, image units 0-15,
-    indexed SSBO/UBO/atomic-counter bindings, the non-indexed buffer bindings (array, copy,
-    pixel pack/unpack, indirect, query, texture, SSBO/UBO/atomic generic), the current program
-    and vertex array, and pack/unpack alignment.
+    distances, the capabilities in `_CAPS`, the active texture unit, 2D and 2D-array texture
+    bindings on units 0-31 and moderngl's default unit, image units 0-15, storage-buffer
+    bindings 0-15 (with their ranges), the non-indexed buffer bindings (array, copy, pixel
+    pack/unpack, indirect, query, texture, SSBO/UBO/atomic generic), the current program and
+    vertex array, and pack/unpack alignment. That is a superset of what guaca's passes change;
+    the rest (sampler objects, 3D/cube textures, indexed UBOs, stencil functions, transform
+    feedback) guaca never touches.
     """
 
     def __init__(self, gl: RawGLFunctions, extra_units: tuple[int, ...] = ()):
@@ -272,14 +269,19 @@ class HostGLState:
         self.buffers = {b: gl.get(b)[0] for b in _BUFFER_TARGETS}
         self.indexed = {}
         for target, (binding, start, size, max_q, cap) in _INDEXED_BUFFERS.items():
-            n = min(gl.get(max_q)[0], cap)
-            self.indexed[target] = [(gl.get_i(binding, i), gl.get_i64(start, i), gl.get_i64(size, i)) for i in range(n)]
-        n_images = min(gl.get(0x8F38)[0], _IMAGE_UNITS)  # GL_MAX_IMAGE_UNITS
-        self.images = [tuple(gl.get_i(e, i) for e in _IMAGE) for i in range(n_images)]
+            slots = []
+            for i in range(min(gl.get(max_q)[0], cap)):
+                name = gl.get_i(binding, i)  # a range only matters for a bound buffer
+                slots.append((name, gl.get_i64(start, i), gl.get_i64(size, i)) if name else (0, 0, 0))
+            self.indexed[target] = slots
+        self.images = []
+        for i in range(min(gl.get(0x8F38)[0], _IMAGE_UNITS)):  # GL_MAX_IMAGE_UNITS
+            name = gl.get_i(_IMAGE[0], i)
+            self.images.append(tuple(gl.get_i(e, i) for e in _IMAGE) if name else None)
         self.textures = {}
         for unit in self.units:
             gl.glActiveTexture(GL_TEXTURE0 + unit)
-            self.textures[unit] = tuple(gl.get(q)[0] for q, _ in _TEXTURE_TARGETS) + (gl.get(0x8919)[0],)
+            self.textures[unit] = tuple(gl.get(q)[0] for q, _ in _TEXTURE_TARGETS)
         gl.glActiveTexture(self.scalars["active_texture"][0])
         self.errors = gl.drain_errors()  # an enum the driver lacks (e.g. NV conservative raster)
 
@@ -333,13 +335,15 @@ class HostGLState:
                     gl.glBindBufferBase(target, i, name)
         for binding, target in _BUFFER_TARGETS.items():  # after the indexed ones: those set the generic
             gl.glBindBuffer(target, self.buffers[binding])
-        for i, (name, level, layered, layer, access, fmt) in enumerate(self.images):
-            gl.glBindImageTexture(i, name, level, layered, layer, access, fmt)
+        for i, image in enumerate(self.images):
+            if image is None:
+                gl.glBindImageTexture(i, 0, 0, 0, 0, 0x88B8, 0x8229)  # unbound: READ_ONLY, R8 (GL's defaults)
+            else:
+                gl.glBindImageTexture(i, *image)
         for unit, bound in self.textures.items():
             gl.glActiveTexture(GL_TEXTURE0 + unit)
-            for (_, target), name in zip(_TEXTURE_TARGETS, bound[:-1]):
+            for (_, target), name in zip(_TEXTURE_TARGETS, bound):
                 gl.glBindTexture(target, name)
-            gl.glBindSampler(unit, bound[-1])
         gl.glActiveTexture(s["active_texture"][0])
         gl.glBindFramebuffer(0x8CA9, s["draw_fbo"][0])  # DRAW_FRAMEBUFFER
         gl.glBindFramebuffer(0x8CA8, s["read_fbo"][0])  # READ_FRAMEBUFFER

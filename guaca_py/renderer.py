@@ -16,6 +16,7 @@ from .materials import MaterialRegistry
 from .methods import method_class, method_ids
 from .passes import PASS_TYPES
 from .pipeline.config import PipelineConfig, load_pipeline
+from .pipeline.draw_cache import DrawCache
 from .pipeline.drawlist import build_draw_list
 from .pipeline.frame import FrameResult, FrameState, mat_bytes
 from .pipeline.settings import resolve_settings
@@ -86,6 +87,7 @@ class Renderer:
         self.textures = TextureCache(self.ctx)
         self._fullscreen_vaos: dict[int, object] = {}
         self.presenter = Presenter(self)
+        self.draw_cache = DrawCache()
         self.frame_serial = 0  # frames rendered; a FrameResult's texture is valid while this is unchanged
         self.set_method(method or self.config.transparency["method"], method_overrides)
         self.passes = [PASS_TYPES[p.name](self, p.settings) for p in self.config.passes]
@@ -181,10 +183,14 @@ class Renderer:
 
     def draw_list(self, frame, draws, transparent: bool, uniforms: dict | None = None, per_program=None) -> None:
         """Draw `draws` with their (opaque or transparent) programs and the given extra uniforms."""
-        last = None
+        last = last_values = None
+        programs: dict[int, object] = {}  # per material description, for this call (the method's state is fixed)
         for d in draws:
-            prog = self.geometry_program(d, transparent)
-            if prog is not last:
+            prog = programs.get(id(d.material))
+            if prog is None:
+                prog = programs[id(d.material)] = self.geometry_program(d, transparent)
+            switched = prog is not last
+            if switched:
                 frame.set_frame_uniforms(prog)
                 for k, v in (uniforms or {}).items():
                     if k in prog:
@@ -192,12 +198,14 @@ class Renderer:
                 if per_program is not None:
                     per_program(prog)
                 last = prog
-            prog["gua_model_matrix"].write(mat_bytes(d.world))
+            prog["gua_model_matrix"].write(d.model_bytes or mat_bytes(d.world))
             if "gua_normal_matrix" in prog:
-                prog["gua_normal_matrix"].write(mat_bytes(np.linalg.inv(d.world).T))
+                prog["gua_normal_matrix"].write(d.normal_bytes or mat_bytes(np.linalg.inv(d.world).T))
             if "gua_draw_index" in prog:
                 prog["gua_draw_index"] = d.index
-            self._set_material_uniforms(prog, d)
+            if switched or d.values is not last_values:  # the same instance as the draw before is all set
+                self._set_material_uniforms(prog, d)
+                last_values = d.values
             self.meshes.vao(d.mesh, prog).render(moderngl.TRIANGLES)
 
     def fullscreen(self, prog) -> None:
@@ -243,7 +251,7 @@ class Renderer:
         """
         w, h = width or self.config.resolution[0], height or self.config.resolution[1]
         cam = scene.camera
-        draws = build_draw_list(scene, self.materials)
+        draws = build_draw_list(scene, self.materials, self.draw_cache)
         frame = FrameState(self, scene, w, h, draws, cam.view_matrix(), cam.projection_matrix(w / h))
         frame.stats.update(
             {

@@ -237,5 +237,33 @@ def test_soak_thousand_edited_frames_stay_flat(host_ctx):
     assert gl1 == gl0, (gl0, gl1)
     assert py1 - py0 < 256 * 1024, (py0, py1)  # Python heap: flat within noise
     assert rss1 - rss0 < 8 * 1024, (rss0, rss1)  # process (and llvmpipe's GPU) memory: flat
+    # caches hold what the last frames used: 3 spheres, 2 quads, the added quads of the last 3 frames
+    assert len(r.meshes) <= 7 and len(r.draw_cache) <= 40
     r.release()
     target.release()
+
+
+def test_unchanged_nodes_cost_no_matrix_work_and_in_place_edits_are_seen(host_ctx, monkeypatch):
+    from guaca_py.scene.graph import Transform
+
+    calls = []
+    original = Transform.matrix
+    monkeypatch.setattr(Transform, "matrix", lambda self: calls.append(1) or original(self))
+    r = Renderer("exact", ctx=host_ctx)
+    scene = _scene()
+    r.render(scene, SIZE, SIZE, read_back=False)
+    calls.clear()
+    r.render(scene, SIZE, SIZE, read_back=False)
+    assert calls == []  # nothing changed: no transform recomputed
+    scene.nodes[2].transform = Transform((0.2, 0.1, 1.0))  # move one node
+    r.render(scene, SIZE, SIZE, read_back=False)
+    assert len(calls) == 1
+    # edits made in place (a uniform, a transform field) are seen like new values
+    scene.nodes[1].material.uniforms["alpha"] = 0.9
+    scene.nodes[2].transform.translation = (-0.3, 0.0, 1.0)
+    edited = r.render(scene, SIZE, SIZE).image
+    fresh = Renderer("exact", ctx=host_ctx)
+    np.testing.assert_array_equal(edited, fresh.render(scene, SIZE, SIZE).image)
+    assert np.abs(edited.astype(int) - r.render(_scene(), SIZE, SIZE).image).max() > 20
+    for x in (r, fresh):
+        x.release()
