@@ -43,8 +43,10 @@ Meshes
     ``{primitive: KIND, ...params}`` builds a procedural mesh: ``quad`` (size [w, h], XY plane
     facing +Z), ``plane`` (size [w, d], subdivisions; XZ plane facing +Y), ``box``
     (size [x, y, z]), ``sphere`` (radius, segments, rings), ``cylinder`` (radius, height,
-    segments, capped; along Y). ``{file: PATH}`` loads OBJ, PLY, STL, GLB or glTF through
-    trimesh. Identical meshes are loaded once and shared between nodes.
+    segments, capped; along Y). ``{file: PATH}`` loads OBJ, PLY or STL through trimesh.
+    Identical meshes are loaded once and shared between nodes. ``{file: x.glb}`` (or .gltf)
+    keeps the file's node hierarchy as the node's first children, with the file's materials
+    (scene/gltf.py); a ``material`` on the node replaces them all.
 
 Materials
     ``{description: NAME, uniforms: {...}}`` or just ``NAME``. Names and uniforms are checked
