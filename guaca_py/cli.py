@@ -93,12 +93,13 @@ def _cmd_view(args) -> int:
 
 
 def _cmd_info(args) -> int:
-    from .context import create_context
+    from .context import probe_capabilities
+    from .raster.choice import device_rule
 
-    _, caps = create_context()
+    caps = probe_capabilities()  # released again: the caller's current context stays current
     d = caps.as_dict()
     if args.json:
-        print(json.dumps(dict(d, insertion_path=caps.insertion_path), indent=2))
+        print(json.dumps(dict(d, insertion_path=caps.insertion_path, raster_auto=device_rule(caps)), indent=2))
         return 0
     print(f"device:    {caps.renderer}")
     print(f"vendor:    {caps.vendor}")
@@ -109,14 +110,15 @@ def _cmd_info(args) -> int:
         f"A-buffer insertion path: {caps.insertion_path} "
         f"({'64-bit atomicMax on (depth, pointer)' if caps.insertion_path == '64bit' else '32-bit CAS on immutable nodes'})"
     )
+    print(f"transparent raster (raster: auto): {device_rule(caps)}")
     return 0
 
 
 def _cmd_methods(args) -> int:
-    from .context import create_context
+    from .context import probe_capabilities
     from .methods import method_class, method_ids
 
-    _, caps = create_context()
+    caps = probe_capabilities()  # released again: the caller's current context stays current
     rows = []
     for mid in method_ids():
         cls = method_class(mid)

@@ -26,6 +26,7 @@ class Capabilities:
     gpu_timers: bool  # timer queries measure real GPU time (not on software rasterizers)
     software: bool  # llvmpipe / softpipe / swrast
     framebuffer_fetch: bool = False  # EXT_shader_framebuffer_fetch: ordered read-modify-write of colour targets
+    shader_ballot: bool = False  # ARB_shader_ballot + ARB_gpu_shader_int64: per-subgroup aggregation of atomics
 
     def as_dict(self) -> dict:
         """Plain dict for JSON output."""
@@ -49,6 +50,7 @@ def detect_capabilities(ctx, disable: tuple[str, ...] = ()) -> Capabilities:
         conservative_raster="GL_NV_conservative_raster" in ext,
         gpu_timers=("GL_ARB_timer_query" in ext or ctx.version_code >= 330) and not software,
         framebuffer_fetch="GL_EXT_shader_framebuffer_fetch" in ext,
+        shader_ballot="GL_ARB_shader_ballot" in ext and "GL_ARB_gpu_shader_int64" in ext,
     )
     for name in disable:
         if name not in caps:
@@ -77,3 +79,15 @@ def create_context(ctx=None, disable: tuple[str, ...] = ()):
     elif ctx.version_code < 450:
         raise DeviceError(f"the adopted context is OpenGL {ctx.version_code}; guaca_py needs 4.5")
     return ctx, detect_capabilities(ctx, disable)
+
+
+def probe_capabilities(disable: tuple[str, ...] = ()) -> Capabilities:
+    """Capabilities of a fresh headless context, released again; whatever context was current stays current."""
+    from .host_state import native
+
+    previous = native().current()
+    ctx, caps = create_context(None, disable)
+    ctx.release()
+    if previous is not None:
+        native().make_current(previous)
+    return caps

@@ -78,21 +78,25 @@ class MeshCache(_FrameCache):
         self._vaos: dict[str, dict[int, object]] = {}
         self.uploads = 0  # meshes uploaded so far (tests and stats: work proportional to change)
 
-    def vao(self, mesh, prog):
-        """VAO drawing `mesh` with `prog` (attributes the program does not use are skipped)."""
+    def buffers(self, mesh) -> tuple:
+        """(vertex buffer of interleaved position, normal, texcoord float32s; uint32 index buffer), by content."""
         key = mesh_digest(mesh)
         self._touch(key)
-        vaos = self._vaos.setdefault(key, {})
+        if key not in self._buffers:
+            inter = np.hstack([mesh.positions, mesh.normals, mesh.texcoords]).astype(np.float32)
+            self._buffers[key] = (
+                self.ctx.buffer(inter.tobytes()),
+                self.ctx.buffer(np.ascontiguousarray(mesh.indices, dtype=np.uint32).tobytes()),
+            )
+            self.uploads += 1
+        return self._buffers[key]
+
+    def vao(self, mesh, prog):
+        """VAO drawing `mesh` with `prog` (attributes the program does not use are skipped)."""
+        vbo, ibo = self.buffers(mesh)
+        vaos = self._vaos.setdefault(mesh_digest(mesh), {})
         vao = vaos.get(prog.glo)
         if vao is None:
-            if key not in self._buffers:
-                inter = np.hstack([mesh.positions, mesh.normals, mesh.texcoords]).astype(np.float32)
-                self._buffers[key] = (
-                    self.ctx.buffer(inter.tobytes()),
-                    self.ctx.buffer(np.ascontiguousarray(mesh.indices, dtype=np.uint32).tobytes()),
-                )
-                self.uploads += 1
-            vbo, ibo = self._buffers[key]
             vao = vaos[prog.glo] = self.ctx.vertex_array(
                 prog,
                 [(vbo, "3f 3f 2f", "in_position", "in_normal", "in_texcoord")],

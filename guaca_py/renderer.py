@@ -21,6 +21,7 @@ from .pipeline.drawlist import build_draw_list
 from .pipeline.frame import FrameResult, FrameState, mat_bytes
 from .pipeline.settings import resolve_settings
 from .present import Presenter
+from .raster import RasterRouter
 from .scene.graph import Scene
 from .shaders import ShaderLibrary, SourceMap
 
@@ -89,6 +90,10 @@ class Renderer:
         self.presenter = Presenter(self)
         self.draw_cache = DrawCache()
         self.frame_serial = 0  # frames rendered; a FrameResult's texture is valid while this is unchanged
+        self._queries: dict[tuple[str, int], object] = {}
+        self._frame_index = 0
+        self._previous_timers: dict | None = None
+        self.raster = RasterRouter(self)  # hardware or compute rasterization of transparent draws
         self.set_method(method or self.config.transparency["method"], method_overrides)
         self.passes = [PASS_TYPES[p.name](self, p.settings) for p in self.config.passes]
         available = set(_FIRST_RESOURCES)
@@ -112,9 +117,15 @@ class Renderer:
         reason = cls.unsupported_reason(self.caps)
         if reason:
             raise UnsupportedMethodError(f"method '{mid}' cannot run on {self.caps.renderer}: {reason}")
+        method = cls(method_settings(mid, self.config.transparency, overrides, self.config.source), self.caps)
+        refusal = method.compute_raster_refusal() if method.settings["raster"] == "compute" else None
+        if refusal:
+            raise UnsupportedMethodError(
+                f"method '{mid}' cannot take transparency.raster: compute: {refusal}; use raster: hardware or auto"
+            )
         if getattr(self, "method", None) is not None:
             self.method.release()
-        self.method = cls(method_settings(mid, self.config.transparency, overrides, self.config.source), self.caps)
+        self.method = method
 
     def pass_named(self, name: str):
         """The pass instance called `name` (compulsory passes always exist)."""
@@ -216,17 +227,27 @@ class Renderer:
         vao.render(moderngl.TRIANGLES, vertices=3)
 
     # ------------------------------------------------------------------ frames
-    def _timed(self, fn) -> tuple[float, str]:
+    def _timed(self, name: str, fn):
+        """Run `fn`; returns a callable giving its time in ms, and the timer kind.
+
+        GPU timer queries are read only after the whole frame was submitted (reading one waits for
+        the GPU). Two query objects per pass alternate from frame to frame, so a frame loop without
+        read-back can report the previous frame's times without waiting for this one.
+        """
         if self.caps.gpu_timers:
-            q = self.ctx.query(time=True)
+            key = (name, self._frame_index % 2)
+            q = self._queries.get(key)
+            if q is None:
+                q = self._queries[key] = self.ctx.query(time=True)
             with q:
                 fn()
-            return q.elapsed / 1e6, "gpu"
+            return (lambda: q.elapsed / 1e6), "gpu"
         self.ctx.finish()
         t0 = time.perf_counter()
         fn()
         self.ctx.finish()
-        return (time.perf_counter() - t0) * 1e3, "wall"
+        ms = (time.perf_counter() - t0) * 1e3
+        return (lambda: ms), "wall"
 
     @on_context
     def render(
@@ -247,7 +268,9 @@ class Renderer:
         With `read_back=False` nothing is copied to the CPU: `FrameResult.texture` holds the
         frame until the next render and `FrameResult.image` reads it on first access.
         `stats=False` skips per-pass timing (no timer queries or GPU syncs); the counters the
-        transparency method gathers are still reported.
+        transparency method gathers are still reported. With `stats=True` and `read_back=False`
+        on a GPU, the per-pass times are the previous frame's (`stats["passes_of"]`), so reading
+        them never waits for this frame.
         """
         w, h = width or self.config.resolution[0], height or self.config.resolution[1]
         cam = scene.camera
@@ -266,21 +289,31 @@ class Renderer:
             }
         )
         t0 = time.perf_counter()
+        timers = {}
         for p in self.passes:
             for _attempt in range(1 + 16):
                 warned = len(frame.stats.get("warnings", []))
                 if stats:
-                    ms, kind = self._timed(lambda p=p: p.execute(frame))
+                    timer, kind = self._timed(p.name, lambda p=p: p.execute(frame))
                 else:
                     p.execute(frame)
-                    ms, kind = 0.0, "off"
+                    timer, kind = (lambda: 0.0), "off"
                 if not frame.rerender:
                     break
                 frame.rerender = False
                 frame.stats["regrown"] += 1
                 del frame.stats.get("warnings", [])[warned:]  # that attempt's overflow is repaired
-            frame.stats["passes"][p.name] = {"ms": round(ms, 4)}
+            timers[p.name] = timer
             frame.stats["timer"] = kind
+        if not stats:
+            frame.stats["passes"] = {name: {"ms": 0.0} for name in timers}
+        elif read_back or kind != "gpu" or self._previous_timers is None:
+            frame.stats["passes"] = {name: {"ms": round(t(), 4)} for name, t in timers.items()}
+        else:  # the previous frame's queries: finished or nearly, so reading them does not stall this one
+            frame.stats["passes"] = {name: {"ms": round(t(), 4)} for name, t in self._previous_timers.items()}
+            frame.stats["passes_of"] = "previous frame"
+        self._previous_timers = None if read_back or not stats else timers
+        self._frame_index += 1
         frame.stats.setdefault("memory", {}).update(self.method.memory() if frame.transparent_draws else {})
         declared = self.method.geometry_passes
         frame.stats.setdefault(
@@ -327,8 +360,10 @@ class Renderer:
         for p in self.passes:
             p.release()
         self.method.release()
+        self.raster.release()
         self.meshes.release()
         self.textures.release()
+        self._queries.clear()  # moderngl has no release for queries: reusing them bounds them at two per pass
         for vao in self._fullscreen_vaos.values():
             vao.release()
         self._fullscreen_vaos.clear()

@@ -38,7 +38,10 @@ class GeometryPass(Pass):
         self.ctx.disable(mgl.BLEND | mgl.CULL_FACE)
         self.ctx.enable(mgl.DEPTH_TEST)
         self.ctx.depth_func = "<"
-        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        # depth only: the composite reads the colour targets only where an opaque surface was drawn
+        self._depth_only.depth_mask = True  # transparent passes leave it off
+        self._depth_only.clear(depth=1.0)
+        fbo.use()  # clearing bound the depth-only framebuffer
         frame.draw_opaque()
         g = {
             "fbo": fbo,
@@ -58,6 +61,7 @@ class GeometryPass(Pass):
             method.render_transparent(frame)
             self.ctx.memory_barrier()
             frame.rerender = method.finish(frame)
+            frame.rerender = self.renderer.raster.finish(frame) or frame.rerender
         elif not has_transparency:
             frame.stats["fragments"] = {"stored": 0}
         self.ctx.depth_func = "<"

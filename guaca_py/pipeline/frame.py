@@ -85,14 +85,12 @@ class FrameState:
     def draw_transparent(
         self, uniforms: dict | None = None, per_program: Callable | None = None, order: list[Draw] | None = None
     ) -> None:
-        """Draw every transparent draw (or the draws of `order`, in that order) with the method's program variant."""
-        self.renderer.draw_list(
-            self,
-            self.transparent_draws if order is None else order,
-            transparent=True,
-            uniforms=uniforms or {},
-            per_program=per_program,
-        )
+        """Draw every transparent draw (or the draws of `order`, in that order) with the method's program variant.
+
+        Each draw goes through the hardware or the compute rasterizer (transparency.raster).
+        """
+        draws = self.transparent_draws if order is None else order
+        self.renderer.raster.draw(self, draws, uniforms or {}, per_program)
 
     def draw_opaque(self) -> None:
         """Draw every opaque draw into the currently bound G-buffer."""
