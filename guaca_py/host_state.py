@@ -23,6 +23,8 @@ import functools
 from contextlib import contextmanager
 from functools import lru_cache
 
+import moderngl
+
 # ---- GL enums ---------------------------------------------------------------------------
 GL_TEXTURE0 = 0x84C0
 _I, _F, _B = "i", "f", "b"
@@ -231,6 +233,15 @@ class RawGLFunctions:
 def raw_functions() -> RawGLFunctions:
     """The process-wide raw entry points (loaded once)."""
     return RawGLFunctions()
+
+
+@lru_cache(maxsize=1)
+def _raw_or_none() -> RawGLFunctions | None:
+    """raw_functions(), or None where no GL library exposes them (state is then not saved)."""
+    try:
+        return raw_functions()
+    except OSError:
+        return None
 
 
 # ---- GL state snapshot ------------------------------------------------------------------------
@@ -473,17 +484,17 @@ class ContextGuard:
             self._depth = 1
             saved = mgl = None
             try:
-                if self.restore_state:
+                if self.restore_state and _raw_or_none() is not None:
                     mgl = (self.ctx.fbo,)
-                    saved = HostGLState(raw_functions(), (self.ctx.default_texture_unit,))
+                    saved = HostGLState(_raw_or_none(), (self.ctx.default_texture_unit,))
                     saved.reset_for_guaca()
                 yield
             finally:
                 self._depth = 0
                 if saved is not None:
-                    if mgl[0] is not None:
-                        mgl[0].use()  # moderngl's idea of the bound framebuffer (ctx.fbo, ctx.clear())
-                    else:
+                    try:  # moderngl's idea of the bound framebuffer (ctx.fbo, what ctx.clear() clears)
+                        mgl[0].use() if mgl[0] is not None else setattr(self.ctx, "fbo", None)
+                    except (AttributeError, moderngl.Error):  # the host released it meanwhile
                         self.ctx.fbo = None
                     saved.restore()
 
