@@ -182,8 +182,14 @@ def test_blend_with_alpha_one_compiles_opaque(tmp_path):
     sc.add_geometry(_trimesh_quad(1.0, PBRMaterial(name="b", baseColorFactor=[1, 1, 1, 1.0], alphaMode="BLEND")))
     path = tmp_path / "b.glb"
     path.write_bytes(sc.export(file_type="glb"))
-    (node,) = load_gltf(path).nodes
+    content = load_gltf(path)
+    (node,) = content.nodes
     assert node.material.description == "gltf_opaque"
+    assert content.camera is None  # no camera in the file: given as SCENE, it gets a framing one
+    cam = load_any(path).camera
+    dist = float(np.linalg.norm(np.subtract(cam.position, cam.target)))
+    assert np.linalg.norm(cam.target) < 1e-9  # aimed at the quad's centre
+    assert cam.near < dist - 1.42 and dist + 1.42 < cam.far  # the whole quad (radius sqrt(2)) within near..far
 
 
 def test_cli_renders_glb_and_mesh_files_with_default_camera_and_light(glb, tmp_path):
