@@ -59,6 +59,7 @@ class Renderer:
         material_paths: list[str | Path] | None = None,
         template_paths: list[str | Path] | None = None,
         disable: tuple[str, ...] = (),
+        restore_host_state: bool = True,
     ):
         previous = native().current()  # creating a context makes it current: the host's comes back
         self.owns_context = ctx is None
@@ -66,7 +67,8 @@ class Renderer:
             self.ctx, self.caps = create_context(None, disable)  # a new context is current
             self._gl = ContextGuard(self.ctx, restore_state=False)
         else:
-            self._gl = ContextGuard(ctx, restore_state=True)
+            # a host that sets all of its state before each of its draws may skip the snapshot (~1 ms a call)
+            self._gl = ContextGuard(ctx, restore_state=restore_host_state)
             with self._gl():  # capabilities (and moderngl's cached ctx.info) must come from this context
                 self.ctx, self.caps = create_context(ctx, disable)
         try:

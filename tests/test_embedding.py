@@ -291,3 +291,17 @@ def test_own_context_renderers_free_their_context():
         rss.append(_rss_kib())
     # before release() freed the context (and its programs and VAOs), each cycle kept ~6.8 MB
     assert rss[-1] - rss[2] < 2 * 1024, rss
+
+
+def test_restore_host_state_can_be_skipped(host_ctx):
+    with host_ctx:
+        host_ctx.enable(moderngl.CULL_FACE)
+    r = Renderer("exact", ctx=host_ctx, restore_host_state=False)
+    img = r.render(_scene(), SIZE, SIZE).image
+    with host_ctx:
+        left = HostGLState(raw_functions())
+    assert not left.caps[0x0B44]  # the geometry pass turned culling off and nobody put it back
+    ref = Renderer("exact", ctx=host_ctx)
+    np.testing.assert_array_equal(img, ref.render(_scene(), SIZE, SIZE).image)  # same frame either way
+    for x in (r, ref):
+        x.release()
