@@ -278,6 +278,7 @@ class Renderer:
         cam = scene.camera
         draws = build_draw_list(scene, self.materials, self.draw_cache)
         frame = FrameState(self, scene, w, h, draws, cam.view_matrix(), cam.projection_matrix(w / h))
+        frame.late_counters = not read_back
         frame.stats.update(
             {
                 "method": self.method.id,

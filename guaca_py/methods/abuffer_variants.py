@@ -163,7 +163,11 @@ class _PostBase(ABufferVariant):
     def after_composite(self, frame) -> None:
         """Fragments the resolve left out (fixed array full, or walk bound) into stats and warnings."""
         frame.ctx.memory_barrier()
-        c = self.read_counters(fresh=True)  # the composite counted after the geometry read
+        if frame.late_counters:  # the previous frame's counts (read in finish), this frame's set aside
+            super().after_composite(frame)
+            c = self.read_counters()
+        else:
+            c = self.read_counters(fresh=True)  # the composite counted after the geometry read
         fr = frame.stats.setdefault("fragments", {})
         fr["truncated"], fr["truncated_pixels"] = c["truncated"], c["truncated_pixels"]
         if c["truncated"]:

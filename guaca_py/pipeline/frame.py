@@ -34,6 +34,9 @@ class FrameState:
     resources: dict = field(default_factory=dict)
     stats: dict = field(default_factory=dict)
     rerender: bool = False
+    # Frame loops without read-back: counters are read a frame late instead of waiting for the GPU
+    # (the stats then describe the previous frame, and an overflow grows the pool for the next one)
+    late_counters: bool = False
 
     @property
     def ctx(self):
