@@ -118,6 +118,11 @@ class FrameResult:
     ):
         self._image, self._linear, self.stats, self.texture, self._reader = image, linear, stats, texture, reader
 
+    @property
+    def is_read(self) -> bool:
+        """Whether the image is on the CPU (a `read_back=False` frame stays on the GPU until asked for)."""
+        return self._image is not None
+
     def read(self) -> FrameResult:
         """Copy the frame to the CPU now (no-op once read)."""
         if self._image is None and self._reader is not None:
