@@ -61,6 +61,19 @@ def test_headless_view_screenshot_matches_render(scene_file, tmp_path, method, c
     np.testing.assert_array_equal(a, b)
 
 
+def test_headless_view_of_a_glb_matches_render(tmp_path):
+    from test_gltf import write_test_glb
+
+    glb = write_test_glb(tmp_path / "modes.glb")
+    shot, ref = tmp_path / "view.png", tmp_path / "render.png"
+    size = ["--width", str(W), "--height", str(H)]
+    assert main(["view", str(glb), "--headless", "--frames", "2", "--screenshot", str(shot), *size]) == 0
+    assert main(["render", str(glb), "--out", str(ref), *size]) == 0
+    a, b = np.asarray(Image.open(shot))[:, :, :3], np.asarray(Image.open(ref))[:, :, :3]
+    assert a.std() > 10
+    np.testing.assert_array_equal(a, b)
+
+
 def test_keys_switch_method_view_and_overflow(window, scene_file):
     from guaca_py.scene.loader import load_scene
     from guaca_py.viewer import Viewer

@@ -35,6 +35,8 @@ def run_viewer(
     screenshot: str | Path | None = None,
 ) -> Viewer:
     """Open a window on `scene` and run until it closes (or for `frames` frames); returns the Viewer."""
+    if headless and not frames:
+        frames = 1  # nothing could ever close a headless window
     try:
         mglw, window_cls = _window_class(headless)
         window = window_cls(
@@ -73,8 +75,8 @@ def run_viewer(
     try:
         while not window.is_closing:
             window.use()
-            if screenshot is not None and frames and viewer.frames == frames - 1:
-                viewer.screenshot_requests.append(Path(screenshot))
+            if screenshot is not None and viewer.frames == (frames - 1 if frames else 0):
+                viewer.screenshot_requests.append(Path(screenshot))  # of the last frame (or the first)
             viewer.frame(window.fbo, window.buffer_size)
             window.swap_buffers()
             if frames and viewer.frames >= frames:
