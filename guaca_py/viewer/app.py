@@ -99,15 +99,14 @@ class Viewer:
         self.scene.camera = self.controller.camera()
         timed = self.frames % STATS_EVERY == 0 or self._changed
         self._changed = False
+        note = ""
         try:
             result = self.renderer((w, h)).render(self.scene, w, h, target=fbo, read_back=False, stats=timed)
-        except GuacaError as exc:  # e.g. a debug view the method cannot feed: say so, fall back
-            self.message = str(exc).splitlines()[0]
+        except GuacaError as exc:  # e.g. a method this view cannot run with: say so, fall back
+            note = str(exc).splitlines()[0]
             self.view = "shaded"
             result = self.renderer((w, h)).render(self.scene, w, h, target=fbo, read_back=False, stats=timed)
-        warnings = result.stats.get("warnings", [])
-        if warnings:
-            self.message = warnings[0]
+        self.message = note or next(iter(result.stats.get("warnings", [])), "")
         if timed or not self.last_stats:
             self.last_stats = result.stats
         else:
@@ -147,7 +146,6 @@ class Viewer:
     # ------------------------------------------------------------------ input
     def key(self, name: str) -> None:
         """React to a key by name (see KEYS)."""
-        self.message = ""
         self._changed = True
         if name in ("M", "N"):
             methods = self.runnable_methods()
