@@ -94,7 +94,10 @@ def test_host_state_and_pixels_survive_a_guaca_frame(host_ctx):
         assert before_px[SIZE // 2, SIZE // 2, 3] == 255 and before_px[SIZE // 2, SIZE // 2, :3].max() > 0
     r = Renderer("default", ctx=host_ctx)
     frame = r.render(_scene(), SIZE, SIZE)
-    assert frame.image[SIZE // 2, SIZE // 2].max() > 0  # guaca drew something
+    # the host's scissor, culling, blending, depth function and viewport do not leak into guaca's frame
+    clean = Renderer("default")
+    np.testing.assert_array_equal(frame.image, clean.render(_scene(), SIZE, SIZE).image)
+    clean.release()
     r.render(_scene(), SIZE, SIZE, target=tex, read_back=False)  # the frame-loop path too
     with host_ctx:
         after = HostGLState(raw_functions(), (host_ctx.default_texture_unit,))
@@ -306,4 +309,23 @@ def test_restore_host_state_can_be_skipped(host_ctx):
     ref = Renderer("exact", ctx=host_ctx)
     np.testing.assert_array_equal(img, ref.render(_scene(), SIZE, SIZE).image)  # same frame either way
     for x in (r, ref):
+        x.release()
+
+
+def test_host_wireframe_and_clip_control_do_not_leak_into_guaca(host_ctx):
+    gl = raw_functions()
+    with host_ctx:
+        host_ctx.wireframe = True  # glPolygonMode(GL_LINE)
+        gl.glClipControl(0x8CA2, 0x935F)  # UPPER_LEFT, ZERO_TO_ONE (a reversed-Z host)
+    r = Renderer("exact", ctx=host_ctx)
+    img = r.render(_scene(), SIZE, SIZE).image
+    with host_ctx:
+        left = HostGLState(gl)
+        host_ctx.wireframe = False
+        gl.glClipControl(0x8CA1, 0x935E)
+    assert left.scalars["polygon_mode"][0] == 0x1B01  # LINE: the host's mode is back
+    assert (left.scalars["clip_origin"][0], left.scalars["clip_depth_mode"][0]) == (0x8CA2, 0x935F)
+    clean = Renderer("exact")
+    np.testing.assert_array_equal(img, clean.render(_scene(), SIZE, SIZE).image)
+    for x in (r, clean):
         x.release()
