@@ -30,7 +30,7 @@ from gpu_clock import at_full_clock, clock_summary  # noqa: E402
 from guaca_py import Renderer  # noqa: E402
 from guaca_py.benchmarking import measure_interleaved  # noqa: E402
 from guaca_py.raster.choice import AUTO_MAX_MEAN_AREA_PX, mean_projected_area  # noqa: E402
-from guaca_py.raster.compute_raster import SMALL_AREA, TILE  # noqa: E402
+from guaca_py.raster.compute_raster import MEDIUM_AREA, SMALL_AREA, TILE  # noqa: E402
 from guaca_py.scene.graph import Camera, MaterialInstance, MeshData, Node, Scene  # noqa: E402
 
 DEFAULT_AREAS = (0.5, 1, 2, 4, 8, 16, 32, 64, 128, 256, 1024, 4096, 16384)
@@ -87,12 +87,14 @@ def main(argv=None) -> int:
     )
     ap.add_argument("--tile", type=int, default=TILE, help="tile edge of the compute large-triangle path")
     ap.add_argument("--small-area", type=int, default=SMALL_AREA, help="largest box one compute thread rasterizes")
+    ap.add_argument("--medium-area", type=int, default=MEDIUM_AREA, help="largest box one workgroup rasterizes untiled")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     w = h = args.size
     hardware = Renderer("exact", method=args.method, method_overrides={"raster": "hardware"})
     compute = Renderer("exact", ctx=hardware.ctx, method=args.method, method_overrides={"raster": "compute"})
-    compute.raster.compute.tile, compute.raster.compute.small_area = args.tile, args.small_area
+    cr = compute.raster.compute
+    cr.tile, cr.small_area, cr.medium_area = args.tile, args.small_area, args.medium_area
     renderers = {"hardware": hardware, "compute": compute}
     caps = renderers["hardware"].caps
     rows = []
@@ -131,7 +133,7 @@ def main(argv=None) -> int:
         ratio = hw["geometry_ms"] / cs["geometry_ms"] if cs["geometry_ms"] else float("nan")
         print(
             f"{area:>9g} {measured:>9.2f} {count:>10} {cs['fragments']:>11} {hw['geometry_ms']:>9.3f} "
-            f"{cs['geometry_ms']:>9.3f} {hw['gfrag_per_s']:>11.3f} {cs['gfrag_per_s']:>11.3f} {ratio:>6.2f}"
+            f"{cs['geometry_ms']:>9.3f} {hw['gfrag_per_s']:>11.4g} {cs['gfrag_per_s']:>11.4g} {ratio:>6.2f}"
         )
         scene.nodes.clear()
         for r in renderers.values():
@@ -146,6 +148,7 @@ def main(argv=None) -> int:
         "auto_max_mean_area_px": AUTO_MAX_MEAN_AREA_PX,
         "tile": args.tile,
         "small_area": args.small_area,
+        "medium_area": args.medium_area,
         "rows": rows,
     }
     (args.out / "raster_sweep.json").write_text(json.dumps(result, indent=2))

@@ -25,7 +25,7 @@ from gpu_clock import at_full_clock, clock_summary  # noqa: E402
 
 from guaca_py import Renderer  # noqa: E402
 from guaca_py.benchmarking import measure_interleaved  # noqa: E402
-from guaca_py.raster.compute_raster import SMALL_AREA, TILE  # noqa: E402
+from guaca_py.raster.compute_raster import MEDIUM_AREA, SMALL_AREA, TILE  # noqa: E402
 from guaca_py.scene.loader import load_scene  # noqa: E402
 
 # ms per frame at 1024² with presort_lf_et: 10x faster than the paper's 58.0 ms (view 2) and
@@ -63,11 +63,13 @@ def main(argv=None) -> int:
     ap.add_argument("--views", nargs="*", default=["hairball_v1", "hairball_v2"])
     ap.add_argument("--tile", type=int, default=TILE, help="tile edge of the compute large-triangle path")
     ap.add_argument("--small-area", type=int, default=SMALL_AREA, help="largest box one compute thread rasterizes")
+    ap.add_argument("--medium-area", type=int, default=MEDIUM_AREA, help="largest box one workgroup rasterizes untiled")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     hw = Renderer("default", method=args.method, method_overrides={"raster": "hardware"})
     cs = Renderer("default", ctx=hw.ctx, method=args.method, method_overrides={"raster": "compute"})
-    cs.raster.compute.tile, cs.raster.compute.small_area = args.tile, args.small_area
+    cr = cs.raster.compute
+    cr.tile, cr.small_area, cr.medium_area = args.tile, args.small_area, args.medium_area
     rows, lines = [], []
     head = (
         "| view | raster | frame ms | geometry ms | composite ms | fragments stored | "
@@ -75,7 +77,7 @@ def main(argv=None) -> int:
     )
     lines += [
         f"{hw.caps.renderer}, {args.size}², {args.method}, median of {args.frames} frames after {args.warmup}; "
-        f"compute tile {args.tile}, small-triangle box <= {args.small_area} px",
+        f"compute tile {args.tile}, boxes <= {args.small_area} px per thread, <= {args.medium_area} px per workgroup",
         "",
         head,
         "|" + "---|" * 9,

@@ -54,6 +54,11 @@ def _cmd_render(args) -> int:
     print(f"method {s['method']} ({s['insertion_path']} insertion), timer: {s['timer']}{how}")
     for name, p in s["passes"].items():
         print(f"  {name:<14} {p['ms']:10.3f} ms")
+    ra = s.get("raster")
+    if ra:
+        print(
+            f"transparent raster ({ra['setting']}): {ra['compute_draws']} draws compute, {ra['hardware_draws']} hardware"
+        )
     fr = s.get("fragments", {})
     print("fragments: " + ", ".join(f"{k} {v}" for k, v in fr.items()))
     mem = s.get("memory", {})

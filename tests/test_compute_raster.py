@@ -7,6 +7,7 @@ from __future__ import annotations
 import colorsys
 import dataclasses
 import re
+import shutil
 
 import numpy as np
 import pytest
@@ -90,10 +91,11 @@ def test_compute_matches_reference_and_hardware(renderer_factory, method):
         assert c.stats["raster"]["compute_draws"] > 0 and c.stats["raster"]["hardware_draws"] == 0
         assert c.stats["fragments"]["overflow"] == 0 and c.stats["fragments"]["guard_abandoned"] == 0
         # the two rasterizers differ only along triangle edges, and there in a handful of pixels
+        # (llvmpipe: 0-3 of 9216; the bound leaves room for another GPU's snapping of vertices)
         diff = differing(c.image, h.image)
         assert not (diff & ~mask).any(), (key, np.argwhere(diff & ~mask)[:5])
-        assert diff.sum() <= 0.002 * SIZE * SIZE, (key, int(diff.sum()))
-        assert abs(c.stats["fragments"]["stored"] - h.stats["fragments"]["stored"]) <= 0.002 * layers.sum()
+        assert diff.sum() <= 0.005 * SIZE * SIZE, (key, int(diff.sum()))
+        assert abs(c.stats["fragments"]["stored"] - h.stats["fragments"]["stored"]) <= 0.005 * layers.sum()
 
 
 def test_early_termination_with_compute(renderer_factory):
@@ -154,7 +156,7 @@ def test_triangle_crossing_the_near_plane(renderer_factory):
     c, h = compute.render(scene, SIZE, SIZE), hardware.render(scene, SIZE, SIZE)
     assert compare(c.image, ref, mask)["max_abs_255"] <= 2.0
     diff = differing(c.image, h.image)
-    assert not (diff & ~mask).any() and diff.sum() <= 0.002 * SIZE * SIZE
+    assert not (diff & ~mask).any() and diff.sum() <= 0.005 * SIZE * SIZE
 
 
 def test_back_faces_like_the_fragment_host(renderer_factory, tmp_path):
@@ -311,11 +313,12 @@ def test_auto_rule(renderer_factory):
     assert frame.stats["raster"][f"{expected}_draws"] == 1 and "rule" in frame.stats["raster"]
 
 
-def test_auto_mixes_both_rasterizers_in_one_frame(renderer_factory):
-    # as on a GPU: small triangles go through compute, large quads through the hardware, all into
-    # one A-buffer; the composite is exact either way
-    import dataclasses
+def test_auto_mixes_both_rasterizers_in_one_frame(renderer_factory, monkeypatch):
+    # as on a GPU with a threshold between the two sizes: small triangles go through compute, large
+    # quads through the hardware, all into one A-buffer; the composite is exact either way
+    from guaca_py.raster import choice
 
+    monkeypatch.setattr(choice, "AUTO_MAX_MEAN_AREA_PX", 64.0)
     r = renderer_factory("exact", method="presort_lf_et", method_overrides={"raster": "auto"})
     r.caps = dataclasses.replace(r.caps, software=False)
     fine = Node(
@@ -357,6 +360,7 @@ def test_gpu_variants_generate_compute_kernels(renderer_factory):
     finally:
         r.method = saved
         del cr.renderer.shaders.program
+        cr._program_sets.clear()  # the captured stages are no programs
     for template, variables in stages[1:]:
         src = r.shaders.render(template, **variables)
         code = re.sub(r"//[^\n]*", "", src)
@@ -367,13 +371,9 @@ def test_gpu_variants_generate_compute_kernels(renderer_factory):
             assert builtin not in code, (template, builtin)
 
 
-@pytest.mark.parametrize("area", [3.0, 40.0])
-def test_small_random_triangles_match_hardware_coverage(renderer_factory, area):
-    # 2000 random triangles of a few pixels (the hairball's regime), every orientation and shape:
-    # the one-thread path (and, at 40 px², the tile path too) stores the fragments the hardware
-    # rasterizer makes, up to pixel centres within a rounding step of an edge
-    rng = np.random.default_rng(int(area))
-    n, w = 2000, 96
+def random_triangles(n: int, w: int, area: float, alpha: float, seed: int):
+    """n random triangles of `area` px² (any shape, orientation) at z in [-0.3, 0.3], seen at w x w."""
+    rng = np.random.default_rng(seed)
     px = 2.0 * 5.0 * np.tan(np.radians(25.0)) / w  # world size of a pixel at z=0
     centre = rng.uniform(-0.5, 0.5, (n, 1, 2)) * w * px
     corners = rng.normal(size=(n, 3, 2))
@@ -387,12 +387,132 @@ def test_small_random_triangles_match_hardware_coverage(renderer_factory, area):
         np.zeros((len(pos), 2), np.float32),
         np.arange(len(pos), dtype=np.uint32).reshape(-1, 3),
     )
-    scene = simple_scene([Node("tris", mesh=mesh, material=unlit((0.8, 0.4, 0.2), 0.3))])
+    return simple_scene([Node("tris", mesh=mesh, material=unlit((0.8, 0.4, 0.2), alpha))])
+
+
+@pytest.mark.parametrize("area", [3.0, 40.0])
+def test_small_random_triangles_match_hardware_coverage(renderer_factory, area):
+    # 2000 random triangles of a few pixels (the hairball's regime), every orientation and shape:
+    # the one-thread path (and, at 40 px², the tile path too) stores the fragments the hardware
+    # rasterizer makes, up to pixel centres within a rounding step of an edge
+    n, w = 2000, 96
+    scene = random_triangles(n, w, area, 0.3, int(area))
     compute, hardware = both(renderer_factory, "presort_lf")
     c, h = compute.render(scene, w, w), hardware.render(scene, w, w)
     sc, sh = c.stats["fragments"]["stored"], h.stats["fragments"]["stored"]
     assert sh > 0.5 * n * area and abs(sc - sh) <= 0.005 * sh, (sc, sh)
     st = c.stats["raster"]["compute"]
-    # slivers of any area can have large boxes; at 3 px² nearly all go through the one-thread path
+    # slivers of any area can have large boxes; at 3 px² nearly all go through the one-thread path,
+    # at 40 px² many through a workgroup each, some through tiles: all three paths ran
     assert st["large_triangles"] < (0.1 if area < 20 else 0.9) * n and st["large_triangles"] > 0, st
+    assert 0 < st["tiled_triangles"] < st["large_triangles"] and st["tile_jobs"] > 0, st
     assert differing(c.image, h.image).mean() < 0.05
+
+
+@pytest.mark.parametrize("ballot", [True, False])
+@pytest.mark.parametrize("method", ["presort_lf_et", "presort_lf_merge2_et", "post_sort"])
+def test_stored_equals_the_lists_with_many_fragments_per_thread(renderer_factory, method, ballot):
+    # one compute invocation reserves nodes for its triangle and submits many fragments, some
+    # stored, some refused by early termination: the derived 'stored' (reserved nodes left over
+    # count as unlinked) must still equal the nodes the lists hold, with and without ballots
+    from test_counters import _linked_nodes
+
+    scene = random_triangles(3000, 64, 12.0, 0.6, 11)
+    disable = () if ballot else ("shader_ballot",)
+    r = renderer_factory(
+        "exact", method=method, method_overrides={"raster": "compute", "threshold": 0.9}, disable=disable
+    )
+    fr = r.render(scene, 64, 64).stats["fragments"]
+    assert fr["stored"] == _linked_nodes(r.method), fr
+    if method != "post_sort":
+        assert fr["et_dropped"] + fr["et_culled"] > 0, fr
+
+
+def test_command_line_set_and_info(capsys, tmp_path):
+    import json
+
+    from guaca_py.cli import main
+
+    assert main(["info"]) == 0
+    assert "transparent raster (raster: auto):" in capsys.readouterr().out
+    args = ["render", "--pipeline", "exact", "--width", "48", "--height", "40", "--out", str(tmp_path / "o.png")]
+    assert main([*args, "--set", "raster=compute", "--stats", str(tmp_path / "s.json")]) == 0
+    out = capsys.readouterr().out
+    stats = json.loads((tmp_path / "s.json").read_text())
+    assert stats["raster"]["setting"] == "compute" and stats["raster"]["compute_draws"] > 0
+    assert "transparent raster (compute)" in out and stats["memory"]["raster_vertices"] > 0
+    assert main([*args, "--method", "depth_peeling", "--set", "raster=compute"]) == 2
+    assert "depth_peeling" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(shutil.which("glslangValidator") is None, reason="glslangValidator (glslang-tools) not installed")
+@pytest.mark.parametrize("method", ["presort_lf_et", "presort_lf_merge2_et"])
+def test_gpu_variants_pass_the_reference_compiler(renderer_factory, tmp_path, method):
+    # the NVIDIA variants (64-bit insertion, subgroup ballots) of every kernel, with every built-in
+    # material made transparent, through Khronos' reference compiler (this device cannot
+    # compile them)
+    import subprocess
+
+    from guaca_py.methods import method_class
+    from guaca_py.pipeline.drawlist import build_draw_list
+    from guaca_py.renderer import method_settings
+
+    r = renderer_factory("exact", method=method, method_overrides={"raster": "compute"})
+    extra = {"shader_ballot": True} if hasattr(r.caps, "shader_ballot") else {}
+    caps = dataclasses.replace(r.caps, atomic_int64=True, **extra)
+    m = method_class(method)(method_settings(method, {"raster": "compute"}), caps)
+    cr = r.raster.compute
+    r.method, saved = m, r.method
+    try:
+        cr.renderer.shaders.program = lambda key, stages, smap, label: stages  # capture, do not compile
+        mats = {
+            "pbr": {"alpha": 0.5},
+            "fresnel_glass": {},
+            "lens_fade_out": {},
+            "pbr_textured": {},
+            "unlit": {"alpha": 0.5},
+        }
+        scene = simple_scene([quad_node(k, 0.0, (1, 1, 1), 0.5) for k in mats])
+        for node in scene.nodes:
+            node.material = MaterialInstance(node.name, mats[node.name])
+        draws = build_draw_list(scene, r.materials)
+        stages = [s["compute_shader"] for d in draws for s in cr._programs(d)]
+    finally:
+        r.method = saved
+        del cr.renderer.shaders.program
+        cr._program_sets.clear()  # the captured stages are no programs
+    assert all(d.transparent for d in draws) and len(stages) == 4 * len(mats)
+    for i, (template, variables) in enumerate(stages):
+        path = tmp_path / f"k{i}.comp"
+        path.write_text(r.shaders.render(template, **variables))
+        run = subprocess.run(["glslangValidator", "-S", "comp", str(path)], capture_output=True, text=True)
+        assert run.returncode == 0, (template, run.stdout[-2000:])
+
+
+def test_a_triangles_fragments_get_neighbouring_nodes(renderer_factory):
+    # the one-thread path reserves a run of nodes per triangle: each small triangle's fragments
+    # (neighbouring pixels) sit in consecutive nodes, as a fragment shader warp's allocation puts
+    # them (fragment-by-fragment allocation spread them over the pool and made the H100's list
+    # walks and composite several times slower than with hardware-rasterized lists)
+    scene = random_triangles(1500, 64, 6.0, 0.3, 5)
+    r = renderer_factory("exact", method="presort_lf", method_overrides={"raster": "compute"})
+    frame = r.render(scene, 64, 64)
+    m = r.method
+    links = np.frombuffer(m._links.read(), dtype=np.uint64 if m.link_bytes == 8 else np.uint32).astype(np.int64)
+    links &= 0xFFFFFFFF
+    ties = np.frombuffer(m._nodes.read(), dtype=np.uint32).reshape(-1, 8)[:, 7]
+    nodes = []
+    for n in links[: m._pixels].tolist():
+        while n:
+            nodes.append(n)
+            n = int(links[m._pixels + n])
+    nodes = np.array(nodes)
+    assert len(nodes) == frame.stats["fragments"]["stored"] > 1500
+    prim = ties[nodes] & 0xFFFFF
+    order = np.lexsort((nodes, prim))
+    prim, nodes = prim[order], nodes[order]
+    first = np.r_[True, prim[1:] != prim[:-1]]
+    span = np.maximum.reduceat(nodes, np.flatnonzero(first)) - nodes[first] + 1
+    count = np.diff(np.r_[np.flatnonzero(first), len(nodes)])
+    small = count <= 16  # triangles of the one-thread path
+    assert small.sum() > 1000 and (span[small] == count[small]).mean() > 0.99

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from ..pipeline.settings import Setting
@@ -15,10 +17,15 @@ RASTER_SETTING = Setting(
 )
 
 # `auto` takes the compute rasterizer for a draw whose visible triangles cover at most this many
-# pixels on average (estimated from a fixed sample). Provisional: benchmarks/raster_sweep.py
-# measures the crossing point of both rasterizers on a device; set it from the H100's chart.
-AUTO_MAX_MEAN_AREA_PX = 64.0
-SAMPLE_TRIANGLES = 1024  # triangles per mesh sampled for the estimate (fixed seed, cached)
+# pixels on average (estimated from a fixed sample). On the H100 (benchmarks/results/h100/
+# raster_sweep/) compute stored fragments 4-15x faster than the hardware at every size measured,
+# 0.5 to 16384 px², and Table 1's dragons and Sponza 2.8-5x (paper_table_raster/): the bound is
+# the largest size measured, beyond which nothing is known.
+AUTO_MAX_MEAN_AREA_PX = 16384.0
+SAMPLE_TRIANGLES = 256  # triangles per mesh sampled for the estimate (fixed seed, cached)
+
+_areas: dict[tuple, float] = {}  # (mesh id, world, view-projection, size) -> mean area
+_samples: dict[int, tuple[weakref.ref, np.ndarray]] = {}  # id(mesh) -> (weak mesh, sample): meshes may go
 
 
 def auto_rule() -> str:
@@ -37,48 +44,39 @@ def device_rule(caps) -> str:
 
 
 def _sample(mesh) -> np.ndarray:
-    """A fixed sample of the mesh's triangles as object-space corner positions (k, 3, 3), cached.
-
-    The sample is kept on the mesh itself (while its arrays stay the same objects), so it goes
-    away with the mesh: a module-level table would keep every mesh ever drawn alive.
-    """
-    arrays = (id(mesh.positions), id(mesh.indices))
-    hit = mesh.__dict__.get("_gua_raster_sample")
-    if hit is not None and hit[0] == arrays:
+    """A fixed sample of the mesh's triangle corners as homogeneous object-space points (k·3, 4), cached."""
+    hit = _samples.get(id(mesh))
+    if hit is not None and hit[0]() is mesh:
         return hit[1]
     idx = np.asarray(mesh.indices).reshape(-1, 3)
     if len(idx) > SAMPLE_TRIANGLES:
         idx = idx[np.random.default_rng(0).choice(len(idx), SAMPLE_TRIANGLES, replace=False)]
-    tris = np.asarray(mesh.positions, dtype=np.float64)[idx]
-    mesh.__dict__["_gua_raster_sample"] = (arrays, tris)
-    return tris
+    corners = np.asarray(mesh.positions, dtype=np.float64)[idx.ravel()]
+    points = np.hstack([corners, np.ones((len(corners), 1))])
+    key = id(mesh)
+    _samples[key] = (weakref.ref(mesh, lambda _ref, key=key: _samples.pop(key, None)), points)
+    return points
 
 
 def mean_projected_area(mesh, world: np.ndarray, view_projection: np.ndarray, width: int, height: int) -> float:
     """Mean screen area in px² of the sampled triangles in front of the near plane and on screen (0: none)."""
-    tris = _sample(mesh)
-    if not len(tris):
-        return 0.0
-    m = view_projection @ world
-    p = tris @ m[:3, :3].T + m[:3, 3]
-    w = tris @ m[3, :3] + m[3, 3]
-    z = p[..., 2]
-    front = np.all(z > -w, axis=1)  # all corners in front of the near plane
-    if not front.any():
-        return 0.0
-    xy = p[front][..., :2] / w[front][..., None]
-    xy = (xy + 1.0) * 0.5 * np.array([width, height])
-    on_screen = (
-        (xy[..., 0].max(axis=1) >= 0)
-        & (xy[..., 0].min(axis=1) <= width)
-        & (xy[..., 1].max(axis=1) >= 0)
-        & (xy[..., 1].min(axis=1) <= height)
-    )
-    if not on_screen.any():
-        return 0.0
-    a, b, c = xy[on_screen, 0], xy[on_screen, 1], xy[on_screen, 2]
-    area = 0.5 * np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
-    return float(area.mean())
+    points = _sample(mesh)
+    key = (id(mesh), world.tobytes(), view_projection.tobytes(), width, height)
+    hit = _areas.get(key)
+    if hit is not None:  # the common case: an unchanged draw and camera
+        return hit
+    clip = (points @ (view_projection @ world).T).reshape(-1, 3, 4)
+    # triangles with all corners in front of the near plane (z > -w)
+    clip = clip[(clip[..., 2] > -clip[..., 3]).all(axis=1)]
+    xy = clip[..., :2] / clip[..., 3:4] * (0.5 * np.array([width, height])) + 0.5 * np.array([width, height])
+    lo, hi = xy.min(axis=1), xy.max(axis=1)
+    xy = xy[((hi >= 0) & (lo <= (width, height))).all(axis=1)]  # on screen
+    e1, e2 = xy[:, 1] - xy[:, 0], xy[:, 2] - xy[:, 0]
+    area = float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).mean()) * 0.5 if len(xy) else 0.0
+    if len(_areas) >= 4096:  # bounded: a moving camera makes every key new
+        _areas.clear()
+    _areas[key] = area
+    return area
 
 
 def auto_choice(software: bool, mean_area: float) -> tuple[str, str]:

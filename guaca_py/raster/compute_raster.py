@@ -4,9 +4,10 @@ After Laine & Karras, "High-Performance Software Rasterization on GPUs" (HPG 201
 what transparent fragments need (no depth buffer, no ordering: the A-buffer sorts). Per draw:
 
 1. vertex   one thread per vertex: the vertex stage with the material's displacement methods;
-2. setup    one thread per triangle: homogeneous setup; a triangle whose candidate box holds at
-            most SMALL_AREA pixels is rasterized by that thread, a larger one is queued;
-3. bin      one workgroup per queued triangle: a (triangle, tile) job per TILE² tile it may cover;
+2. setup    one thread per triangle: setup; a triangle whose candidate box holds at most
+            SMALL_AREA pixels is rasterized by that thread, a larger one is queued;
+3. bin      one workgroup per queued triangle: rasterizes it when its box holds at most
+            MEDIUM_AREA pixels, else makes a (triangle, tile) job per TILE² tile it may cover;
 4. fine     one workgroup per job, one thread per pixel.
 
 Every covered pixel runs the material's visibility methods and the method's gua_submit_at()
@@ -46,11 +47,14 @@ STATE_WORDS = (
     "jobs_total",
     "jobs_peak",
     "jobs_dropped",
+    "tiled",
+    "tiled_total",
 )
 TILE = 8  # tile edge in pixels of the large-triangle path (one 64-thread workgroup per job, as L&K's fine raster)
 SMALL_AREA = 128  # candidate boxes up to this many pixels are rasterized by one thread
+MEDIUM_AREA = 1024  # larger boxes up to this many pixels by one 64-thread workgroup, without tiles
 DEPTH_UNIT = 7  # texture unit of the G-buffer depth (units 8+ hold material textures)
-VERTEX_RECORD_BYTES = 48  # window-homogeneous position, world position + u, normal + v
+VERTEX_RECORD_BYTES = 48  # clip position, world position + u, normal + v
 MAX_REGROW = 2  # re-renders one frame may take to grow the queue or the job list
 _GROUP = 64  # threads per workgroup of the vertex and setup stages
 _MAX_GROUPS_X = 65535  # the GL minimum of GL_MAX_COMPUTE_WORK_GROUP_COUNT; grids wrap into y
@@ -73,11 +77,14 @@ class ComputeRasterizer:
         self.job_capacity = 0  # (triangle, tile) jobs per draw
         self._want: dict[str, int] = {}
         self._fresh = True  # the next draw starts a geometry pass: reset the state
+        self._frame = None  # the frame being drawn (a new one always starts afresh)
         self._triangles = 0
         self.regrown = 0
         self.tile = TILE  # tunable per renderer (benchmarks/raster_sweep.py --tile, --small-area)
         self.small_area = SMALL_AREA
+        self.medium_area = MEDIUM_AREA
         self._materials: dict[int, tuple] = {}  # id(material) -> (material, ComputeMaterial)
+        self._program_sets: dict[tuple, tuple] = {}  # program key -> the four kernels (built once)
 
     # ------------------------------------------------------------------ programs
     def _common(self, draw) -> dict:
@@ -88,6 +95,7 @@ class ComputeRasterizer:
             "raster_state_words": STATE_WORDS,
             "raster_tile": self.tile,
             "raster_small_area": self.small_area,
+            "raster_medium_area": self.medium_area,
             "raster_depth_unit": DEPTH_UNIT,
         }
 
@@ -102,7 +110,7 @@ class ComputeRasterizer:
         return self._compute_material(draw.material).problem
 
     def _programs(self, draw):
-        """(vertex, setup, fine) kernels for the draw's material and the current method, compiled once."""
+        """(vertex, setup, bin, fine) kernels for the draw's material and the current method, compiled once."""
         mat, method = draw.material, self.renderer.method
         cm = self._compute_material(mat)
         if cm.problem:
@@ -116,12 +124,17 @@ class ComputeRasterizer:
             tuple(sorted((k, str(v)) for k, v in mvars.items())),
             self.tile,
             self.small_area,
+            self.medium_area,
         )
+        hit = self._program_sets.get(key)
+        if hit is not None:
+            return hit
         shaders = self.renderer.shaders
         progs = []
         for stage, template in (
             ("vertex", "raster/vertex.comp.j2"),
             ("setup", "raster/setup.comp.j2"),
+            ("bin", "raster/bin.comp.j2"),
             ("fine", "raster/fine.comp.j2"),
         ):
             smap = SourceMap()
@@ -158,7 +171,8 @@ class ComputeRasterizer:
                     label=f"{label} ({mat.path}), compute raster {stage}",
                 )
             )
-        return progs
+        self._program_sets[key] = tuple(progs)
+        return self._program_sets[key]
 
     def _kernel(self, template: str):
         return self.renderer.shaders.compute(template, **self._raster_vars())
@@ -203,18 +217,18 @@ class ComputeRasterizer:
         """Rasterize `draws` into the method's storage (bound by the method, as for hardware draws)."""
         if not draws:
             return
-        if self._fresh:
+        if self._fresh or self._frame is not frame:
             self._begin(frame, draws)
-            self._fresh = False
+            self._fresh, self._frame = False, frame
         ctx, r = self.ctx, self.renderer
         frame.resources["gbuffer"]["depth"].use(location=DEPTH_UNIT)
-        args, binner = self._kernel("raster/args.comp.j2"), self._kernel("raster/bin.comp.j2")
+        args = self._kernel("raster/args.comp.j2")
         for d in draws:
             if len(d.mesh.positions) > self.vertex_capacity:  # a later call of the pass with a larger mesh
                 self._release(self._verts)
                 self.vertex_capacity = len(d.mesh.positions)
                 self._verts = ctx.buffer(reserve=self.vertex_capacity * VERTEX_RECORD_BYTES)
-            vert, setup, fine = self._programs(d)
+            vert, setup, binner, fine = self._programs(d)
             vbo, ibo = r.meshes.buffers(d.mesh)
             self._verts.bind_to_storage_buffer(8)
             vbo.bind_to_storage_buffer(9)
@@ -230,7 +244,7 @@ class ComputeRasterizer:
             r._set_material_uniforms(vert, d)
             vert.run(*_grid(len(d.mesh.positions)))
             ctx.memory_barrier()
-            for prog in (setup, fine):
+            for prog in (setup, binner, fine):
                 frame.set_frame_uniforms(prog)
                 for k, v in uniforms.items():
                     if k in prog:
@@ -247,7 +261,6 @@ class ComputeRasterizer:
             args["gua_args_mode"], args["gua_capacity"] = 1, self.large_capacity
             args.run(1)
             ctx.memory_barrier()
-            binner["gua_resolution"] = (float(frame.width), float(frame.height))
             binner["gua_job_capacity"] = self.job_capacity
             binner.run_indirect(self._state, STATE_WORDS.index("bin_x") * 4)
             ctx.memory_barrier()
@@ -260,14 +273,15 @@ class ComputeRasterizer:
 
     def finish(self, frame) -> bool:
         """Totals into frame.stats; after an overflow, grow and ask for the frame again (MAX_REGROW times)."""
-        if self._fresh:  # nothing drawn through compute in this pass
+        if self._fresh or self._frame is not frame:  # nothing drawn through compute in this pass
             return False
-        self._fresh = True
+        self._fresh, self._frame = True, None
         self.ctx.copy_buffer(self._readback, self._state)
         c = dict(zip(STATE_WORDS, np.frombuffer(self._readback.read(), dtype=np.uint32).tolist()))
         frame.stats.setdefault("raster", {})["compute"] = {
             "triangles": self._triangles,
             "large_triangles": c["large_total"],
+            "tiled_triangles": c["tiled_total"],
             "tile_jobs": c["jobs_total"],
             "large_dropped": c["large_dropped"],
             "tile_jobs_dropped": c["jobs_dropped"],
@@ -307,4 +321,4 @@ class ComputeRasterizer:
             self._release(b)
         self._state = self._readback = self._verts = self._large = self._jobs = None
         self.vertex_capacity = self.large_capacity = self.job_capacity = 0
-        self._fresh = True
+        self._fresh, self._frame = True, None
