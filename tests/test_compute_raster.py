@@ -516,3 +516,28 @@ def test_a_triangles_fragments_get_neighbouring_nodes(renderer_factory):
     count = np.diff(np.r_[np.flatnonzero(first), len(nodes)])
     small = count <= 16  # triangles of the one-thread path
     assert small.sum() > 1000 and (span[small] == count[small]).mean() > 0.99
+
+
+@pytest.mark.parametrize("method", ["presort_lf_et", "presort_lf"])
+def test_triangles_are_taken_in_depth_order(renderer_factory, method):
+    # one mesh of 24 full-screen layers listed back to front: the setup stage takes them front to
+    # back with early termination (the saturation depth then culls the farther ones), back to
+    # front without (each insertion stops at the list head); layers outside the frustum are left out
+    n = 24
+    quads = [tessellated_plane(1, 12.0, 0.0) for _ in range(n)]
+    zs = np.linspace(-3.0, 2.0, n)
+    pos = np.concatenate([q.positions + np.float32([0, 0, z]) for q, z in zip(quads, zs)])
+    pos = np.concatenate([pos, quads[0].positions + np.float32([0, 0, 9.0])])  # behind the camera
+    idx = np.concatenate([q.indices + 4 * i for i, q in enumerate([*quads, quads[0]])]).astype(np.uint32)
+    mesh = MeshData(pos, np.tile(np.float32([0, 0, 1]), (len(pos), 1)), np.zeros((len(pos), 2), np.float32), idx)
+    scene = simple_scene([Node("stack", mesh=mesh, material=unlit((0.7, 0.3, 0.2), 0.5))])
+    r = renderer_factory("exact", method=method, method_overrides={"raster": "compute", "threshold": 0.9})
+    frame = r.render(scene, 32, 32)
+    st = frame.stats["raster"]["compute"]
+    assert st["visible_triangles"] == 2 * n, st
+    order = np.frombuffer(r.raster.compute._order.read(), dtype=np.uint32)[: 2 * n]
+    layer = order // 2  # two triangles per layer; layer 0 is the farthest
+    steps = np.diff(layer.astype(int))
+    assert (steps <= 0).all() if method == "presort_lf_et" else (steps >= 0).all(), layer
+    if r.caps.software and method == "presort_lf_et":  # llvmpipe runs workgroups in order
+        assert frame.stats["fragments"]["stored"] <= 6 * 32 * 32, frame.stats["fragments"]
