@@ -482,6 +482,7 @@ def test_gpu_variants_pass_the_reference_compiler(renderer_factory, tmp_path, me
         del cr.renderer.shaders.program
         cr._program_sets.clear()  # the captured stages are no programs
     assert all(d.transparent for d in draws) and len(stages) == 4 * len(mats)
+    stages += [(t, cr._raster_vars()) for t in ("raster/args.comp.j2", "raster/order.comp.j2")]
     for i, (template, variables) in enumerate(stages):
         path = tmp_path / f"k{i}.comp"
         path.write_text(r.shaders.render(template, **variables))

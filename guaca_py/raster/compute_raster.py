@@ -64,7 +64,7 @@ MEDIUM_AREA = 1024  # larger boxes up to this many pixels by one 64-thread workg
 DEPTH_UNIT = 7  # texture unit of the G-buffer depth (units 8+ hold material textures)
 VERTEX_RECORD_BYTES = 48  # clip position, world position + u, normal + v
 MAX_REGROW = 2  # re-renders one frame may take to grow the queue or the job list
-BUCKETS = 1024  # view-depth buckets of the triangle order
+BUCKETS = 1024  # view-depth buckets of the triangle order (a multiple of 64: order.comp.j2's scan)
 _GROUP = 64  # threads per workgroup of the vertex and setup stages
 _MAX_GROUPS_X = 65535  # the GL minimum of GL_MAX_COMPUTE_WORK_GROUP_COUNT; grids wrap into y
 
@@ -260,7 +260,7 @@ class ComputeRasterizer:
         order_kernel["gua_tri_count"] = draw.mesh.triangle_count
         order_kernel["gua_depth_range"] = self._depth_range(frame, draw)
         order_kernel["gua_back_to_front"] = not early_termination
-        for mode, items in ((0, BUCKETS), (1, draw.mesh.triangle_count), (2, 1), (3, draw.mesh.triangle_count)):
+        for mode, items in ((0, BUCKETS), (1, draw.mesh.triangle_count), (2, _GROUP), (3, draw.mesh.triangle_count)):
             order_kernel["gua_order_mode"] = mode
             order_kernel.run(*_grid(items))
             ctx.memory_barrier()
