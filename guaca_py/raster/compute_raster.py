@@ -250,7 +250,7 @@ class ComputeRasterizer:
         w = corners @ (frame.projection @ frame.view @ draw.world)[3]
         return float(max(w.min(), 0.0)), float(max(w.max(), 0.0))
 
-    def _order_pass(self, frame, draw, order_kernel) -> None:
+    def _order_pass(self, frame, draw, order_kernel, depth_range: tuple[float, float]) -> None:
         """Bucket-sort the draw's triangles in the frustum by view depth (see order.comp.j2)."""
         ctx = self.ctx
         self._fit_order(draw.mesh.triangle_count)
@@ -258,7 +258,7 @@ class ComputeRasterizer:
         self._order.bind_to_storage_buffer(15)
         early_termination = bool(getattr(self.renderer.method, "early_termination", False))
         order_kernel["gua_tri_count"] = draw.mesh.triangle_count
-        order_kernel["gua_depth_range"] = self._depth_range(frame, draw)
+        order_kernel["gua_depth_range"] = depth_range
         order_kernel["gua_back_to_front"] = not early_termination
         for mode, items in ((0, BUCKETS), (1, draw.mesh.triangle_count), (2, _GROUP), (3, draw.mesh.triangle_count)):
             order_kernel["gua_order_mode"] = mode
@@ -281,6 +281,12 @@ class ComputeRasterizer:
         ctx, r = self.ctx, self.renderer
         frame.resources["gbuffer"]["depth"].use(location=DEPTH_UNIT)
         args, order_kernel = self._kernel("raster/args.comp.j2"), self._kernel("raster/order.comp.j2")
+        # draws run one after the other: take them in depth order too (see _order_pass)
+        ranges = {d.index: self._depth_range(frame, d) for d in draws}
+        if getattr(r.method, "early_termination", False):
+            draws = sorted(draws, key=lambda d: ranges[d.index][0])
+        else:
+            draws = sorted(draws, key=lambda d: -ranges[d.index][1])
         for d in draws:
             if len(d.mesh.positions) > self.vertex_capacity:  # a later call of the pass with a larger mesh
                 self._release(self._verts)
@@ -302,7 +308,7 @@ class ComputeRasterizer:
             r._set_material_uniforms(vert, d)
             vert.run(*_grid(len(d.mesh.positions)))
             ctx.memory_barrier()
-            self._order_pass(frame, d, order_kernel)
+            self._order_pass(frame, d, order_kernel, ranges[d.index])
             for prog in (setup, binner, fine):
                 frame.set_frame_uniforms(prog)
                 for k, v in uniforms.items():
