@@ -112,3 +112,15 @@ def test_frame_loop_reads_counters_a_frame_late(renderer_factory):
     assert settled.stats["fragments"]["overflow"] == 0
     exact = r.render(deep, SIZE, SIZE)
     assert exact.stats["fragments"]["stored"] == settled.stats["fragments"]["stored"]
+
+
+def test_frame_loop_with_the_compute_rasterizer(renderer_factory):
+    """The compute rasterizer's totals are read a frame late too; the counts match a read-back frame's."""
+    scene = layered_quads_scene(n_layers=6, order="shuffled", seed=8, with_opaque=False)
+    r = renderer_factory("exact", method="presort_lf", method_overrides={"raster": "compute"})
+    loop = [r.render(scene, SIZE, SIZE, read_back=False) for _ in range(3)]
+    assert loop[-1].stats["fragments_of"] == "previous frame"
+    assert loop[-1].stats["raster"]["compute"]["triangles"] == 12
+    exact = r.render(scene, SIZE, SIZE)
+    assert "fragments_of" not in exact.stats
+    assert loop[-1].stats["fragments"]["stored"] == exact.stats["fragments"]["stored"] > 6 * 1000

@@ -95,7 +95,8 @@ class ComputeRasterizer:
     def __init__(self, renderer):
         self.renderer = renderer
         self.ctx = renderer.ctx
-        self._state = self._readback = self._verts = self._large = self._jobs = None
+        self._state = self._readback = self._late = self._verts = self._large = self._jobs = None
+        self._late_valid = False
         self._buckets = self._order = None
         self.vertex_capacity = 0
         self.order_capacity = 0  # triangles of the largest draw (the order list)
@@ -340,8 +341,19 @@ class ComputeRasterizer:
         if self._fresh or self._frame is not frame:  # nothing drawn through compute in this pass
             return False
         self._fresh, self._frame = True, None
-        self.ctx.copy_buffer(self._readback, self._state)
-        c = dict(zip(STATE_WORDS, np.frombuffer(self._readback.read(), dtype=np.uint32).tolist()))
+        late = frame.late_counters and self._late_valid
+        if frame.late_counters:
+            # a frame loop without read-back: the previous frame's totals (finished by now) are read,
+            # this frame's are set aside for the next, so the CPU never waits for this frame here
+            if self._late is None:
+                self._late = self.ctx.buffer(reserve=len(STATE_WORDS) * 4)
+            if late:
+                c = dict(zip(STATE_WORDS, np.frombuffer(self._late.read(), dtype=np.uint32).tolist()))
+            self.ctx.copy_buffer(self._late, self._state)
+        self._late_valid = frame.late_counters  # a frame with read-back leaves nothing for the next
+        if not late:
+            self.ctx.copy_buffer(self._readback, self._state)
+            c = dict(zip(STATE_WORDS, np.frombuffer(self._readback.read(), dtype=np.uint32).tolist()))
         frame.stats.setdefault("raster", {})["compute"] = {
             "triangles": self._triangles,
             "large_triangles": c["large_total"],
@@ -353,14 +365,16 @@ class ComputeRasterizer:
         }
         frame.stats.setdefault("memory", {}).update(self.memory(c["large_peak"], c["jobs_peak"]))
         dropped = c["large_dropped"] or c["jobs_dropped"]
+        if dropped and late:  # grow for the next frame; this one is not rendered again
+            self._grow(c)
+            frame.stats.setdefault("warnings", []).append(
+                f"compute raster: {c['large_dropped']} large triangles and {c['jobs_dropped']} tile jobs dropped "
+                "in the previous frame; the queues grow for the next"
+            )
+            return False
         if dropped and self.regrown < MAX_REGROW:
             self.regrown += 1
-            if c["large_dropped"]:
-                self._want["large"] = int(c["large_peak"] * 1.15) + 1024
-            if c["jobs_dropped"]:
-                # a larger queue lets more triangles through to binning: leave room for their jobs too
-                scale = 1.0 if not c["large_dropped"] else c["large_peak"] / max(1, self.large_capacity)
-                self._want["jobs"] = int(c["jobs_peak"] * scale * 1.15) + 4096
+            self._grow(c)
             return True
         if dropped:
             frame.stats.setdefault("warnings", []).append(
@@ -369,6 +383,15 @@ class ComputeRasterizer:
             )
         self.regrown = 0
         return False
+
+    def _grow(self, c: dict) -> None:
+        """Ask the next frame's buffers for room for what the counts `c` show was dropped."""
+        if c["large_dropped"]:
+            self._want["large"] = int(c["large_peak"] * 1.15) + 1024
+        if c["jobs_dropped"]:
+            # a larger queue lets more triangles through to binning: leave room for their jobs too
+            scale = 1.0 if not c["large_dropped"] else c["large_peak"] / max(1, self.large_capacity)
+            self._want["jobs"] = int(c["jobs_peak"] * scale * 1.15) + 4096
 
     def memory(self, large_peak: int = 0, jobs_peak: int = 0) -> dict:
         """Bytes of the rasterizer's buffers, allocated and used by the busiest draw."""
@@ -383,9 +406,19 @@ class ComputeRasterizer:
 
     def release(self) -> None:
         """Free all buffers."""
-        for b in (self._state, self._readback, self._verts, self._large, self._jobs, self._buckets, self._order):
+        for b in (
+            self._state,
+            self._readback,
+            self._late,
+            self._verts,
+            self._large,
+            self._jobs,
+            self._buckets,
+            self._order,
+        ):
             self._release(b)
-        self._state = self._readback = self._verts = self._large = self._jobs = None
+        self._state = self._readback = self._late = self._verts = self._large = self._jobs = None
+        self._late_valid = False
         self._buckets = self._order = None
         self.vertex_capacity = self.large_capacity = self.job_capacity = self.order_capacity = 0
         self._fresh, self._frame = True, None
