@@ -95,7 +95,7 @@ class ComputeRasterizer:
     def __init__(self, renderer):
         self.renderer = renderer
         self.ctx = renderer.ctx
-        self._state = self._readback = self._late = self._verts = self._large = self._jobs = None
+        self._state = self._readback = self._zeros = self._late = self._verts = self._large = self._jobs = None
         self._late_valid = False
         self._buckets = self._order = None
         self.vertex_capacity = 0
@@ -217,6 +217,7 @@ class ComputeRasterizer:
         if self._state is None:
             self._state = ctx.buffer(reserve=len(STATE_WORDS) * 4)
             self._readback = ctx.buffer(reserve=len(STATE_WORDS) * 4)
+            self._zeros = ctx.buffer(bytes(len(STATE_WORDS) * 4))  # the reset, copied on the GPU
             self._buckets = ctx.buffer(reserve=BUCKETS * 4)
         if vertices > self.vertex_capacity:
             self._release(self._verts)
@@ -229,11 +230,9 @@ class ComputeRasterizer:
         if jobs != self.job_capacity:
             self._release(self._jobs)
             self.job_capacity, self._jobs = jobs, ctx.buffer(reserve=jobs * 8)
-        args = self._kernel("raster/args.comp.j2")
-        self._state.bind_to_storage_buffer(11)
-        args["gua_args_mode"] = 0
-        args["gua_capacity"] = 0
-        args.run(1)
+        # a GPU copy, not a loop in the args kernel: NVIDIA's compiler refused that loop's store
+        # ("lvalue in array access too complex")
+        ctx.copy_buffer(self._state, self._zeros)
         ctx.memory_barrier()
         self._triangles = 0
 
@@ -417,7 +416,7 @@ class ComputeRasterizer:
             self._order,
         ):
             self._release(b)
-        self._state = self._readback = self._late = self._verts = self._large = self._jobs = None
+        self._state = self._readback = self._zeros = self._late = self._verts = self._large = self._jobs = None
         self._late_valid = False
         self._buckets = self._order = None
         self.vertex_capacity = self.large_capacity = self.job_capacity = self.order_capacity = 0
