@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 from .errors import DeviceError
+from .limits import DeviceLimits, query_limits
 
 _INSTALL_HINT = (
     "guaca_py needs OpenGL 4.5 core through EGL. On Debian/Ubuntu install Mesa's EGL and "
@@ -26,6 +27,7 @@ class Capabilities:
     gpu_timers: bool  # timer queries measure real GPU time (not on software rasterizers)
     software: bool  # llvmpipe / softpipe / swrast
     framebuffer_fetch: bool = False  # EXT_shader_framebuffer_fetch: ordered read-modify-write of colour targets
+    limits: DeviceLimits | None = None  # buffer and render-target sizes (guaca_py/limits.py)
 
     def as_dict(self) -> dict:
         """Plain dict for JSON output."""
@@ -59,6 +61,7 @@ def detect_capabilities(ctx, disable: tuple[str, ...] = ()) -> Capabilities:
         vendor=info.get("GL_VENDOR", "?"),
         version=info.get("GL_VERSION", "?"),
         software=software,
+        limits=query_limits(ctx, software),
         **caps,
     )
 

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from ..pipeline.settings import Setting
+from ..pipeline.settings import Setting, non_negative, positive
 from ..prefix_sum import GpuFill, PrefixSum, dispatch_grid
 from .base import TransparencyMethod
 from .presort_lf import _budget
@@ -70,11 +70,19 @@ class _CountedStorage(TransparencyMethod):
         return buf
 
     def _max_slots(self, ctx, slot_bytes: int) -> int:
-        """Storage cap in slots: budget_mb if set, and the device's largest storage block."""
-        limit = int(ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 2**31 - 1))
+        """Storage cap in slots: budget_mb if set, and the device's storage rule (guaca_py/limits.py)."""
+        limit = self.caps.limits.max_buffer_bytes if self.caps.limits else 2**31 - 1
         if self.settings["budget_mb"] != "auto":
             limit = min(limit, int(self.settings["budget_mb"] * 1024 * 1024))
-        return max(1, limit // slot_bytes)
+        return max(1, min(limit // slot_bytes, 2**32 - 1))
+
+    def _cap_reason(self, ctx, slot_bytes: int) -> str:
+        """Which limit capped the storage, and what to do about it."""
+        device = self.caps.limits.max_buffer_bytes if self.caps.limits else 2**31 - 1
+        if self.settings["budget_mb"] != "auto" and self.settings["budget_mb"] * 1024 * 1024 < device:
+            return "transparency.budget_mb; raise it or use 'auto'"
+        where = self.caps.limits.describe() if self.caps.limits else "2 GiB per buffer"
+        return f"the device's limit, {where}; render fewer layers or pixels"
 
     def _reset_counters(self, ctx, alloc_start: int = 0) -> None:
         values = [0] * len(COUNTERS)
@@ -222,7 +230,7 @@ class DynamicFragmentBuffer(_CountedStorage):
             self._warn(
                 frame,
                 f"{self.id}: frame needs {total} fragments, storage capped at {capacity} "
-                f"(budget_mb or the device's storage block limit); {c['overflow']} dropped",
+                f"by {self._cap_reason(frame.ctx, PAYLOAD_BYTES)}; {c['overflow']} dropped",
             )
         elif c["overflow"] or c["stored"] != total:
             self._warn(
@@ -307,8 +315,10 @@ class PagedLinkedLists(_CountedStorage):
     SETTINGS = {
         **_CountedStorage.SETTINGS,
         "page_size": Setting((int,), 4, "P: fragments per page", check=_page_check),
-        "max_regrow": Setting((int,), 2, "re-renders allowed to grow an 'auto' pool after overflow"),
-        "max_steps": Setting((int,), 4096, "bound on retries per insertion (guards against livelock)"),
+        "max_regrow": Setting(
+            (int,), 2, "re-renders allowed to grow an 'auto' pool after overflow", check=non_negative
+        ),
+        "max_steps": Setting((int,), 4096, "bound on retries per insertion (guards against livelock)", check=positive),
     }
 
     def __init__(self, settings, caps):
@@ -337,6 +347,14 @@ class PagedLinkedLists(_CountedStorage):
     def _page_limit(self, ctx) -> int:
         """Most pages: storage cap, and page indices must fit the head word next to the fill."""
         return min(self._max_slots(ctx, self.page * PAYLOAD_BYTES), 2 ** (32 - self.fill_bits) - 1)
+
+    def _paged_hint(self, ctx, limit: int, auto: bool) -> str:
+        """What bounded the page pool, and what to do about it."""
+        if self.capacity < limit:
+            return "raise transparency.budget_mb or use 'auto'" if not auto else "raise transparency.max_regrow"
+        if limit == 2 ** (32 - self.fill_bits) - 1 and self.page > 1:
+            return f"page indices are {32 - self.fill_bits} bits beside the fill count: try a smaller page_size"
+        return f"capped by {self._cap_reason(ctx, self.page * PAYLOAD_BYTES)}"
 
     def prepare(self, frame) -> None:
         """Size the page pool (requested size, previous size or a first guess), clear heads and counters."""
@@ -397,11 +415,7 @@ class PagedLinkedLists(_CountedStorage):
             )
             return True
         if c["overflow"]:
-            hint = (
-                "the device's storage block limit: try a smaller page_size"
-                if self.capacity >= limit and auto
-                else "raise transparency.budget_mb or use 'auto'"
-            )
+            hint = self._paged_hint(frame.ctx, limit, auto)
             self._warn(
                 frame,
                 f"paged_ll overflow: {c['overflow']} fragments dropped (pool {self.capacity - 1} "

@@ -16,7 +16,7 @@ pool_mb 'auto' the pool then grows to the pass's need, so the next pass cannot o
 
 from __future__ import annotations
 
-from ..pipeline.settings import Setting
+from ..pipeline.settings import Setting, positive
 from .peeling import PeelingMethod
 
 NODE_BYTES = 32  # 8 payload words
@@ -47,8 +47,10 @@ class MultiLayerDepthPeeling(PeelingMethod):
         "pool_mb": Setting(
             (str, int, float), "auto", "node pool in MB, or 'auto' (grows to a pass's need)", check=_pool
         ),
-        "max_pool_mb": Setting((int, float), 512, "largest pool 'auto' may grow to"),
-        "max_steps": Setting((int,), 1024, "bound on swap attempts per insertion (guards against livelock)"),
+        "max_pool_mb": Setting((int, float), 512, "largest pool 'auto' may grow to", check=positive),
+        "max_steps": Setting(
+            (int,), 1024, "bound on swap attempts per insertion (guards against livelock)", check=positive
+        ),
     }
 
     def __init__(self, settings, caps):
@@ -69,7 +71,9 @@ class MultiLayerDepthPeeling(PeelingMethod):
 
     # ------------------------------------------------------------------ storage
     def _pool_nodes(self, mb: float) -> int:
-        return max(2, int(mb * 1024 * 1024) // NODE_BYTES)
+        """Nodes in `mb` megabytes, within the device's storage rule (guaca_py/limits.py)."""
+        cap = self.caps.limits.elements(NODE_BYTES) if self.caps.limits else 2**31 // NODE_BYTES
+        return max(2, min(int(mb * 1024 * 1024) // NODE_BYTES, cap, 2**32 - 1))
 
     def _alloc_pool(self, frame, capacity: int) -> None:
         ctx = frame.ctx
@@ -92,7 +96,7 @@ class MultiLayerDepthPeeling(PeelingMethod):
         """Per-pixel state and the node pool (one node per pixel and layer to start with)."""
         pool = self.settings["pool_mb"]
         if pool == "auto":
-            start = max(1024, frame.pixel_count * self.layers + 1)
+            start = min(max(1024, frame.pixel_count * self.layers + 1), self._pool_nodes(self.settings["max_pool_mb"]))
             cap = self.capacity if self._pixels == frame.pixel_count and self.capacity else start
             if self._used_nodes and self._used_nodes + 1 < cap // 4:
                 # the last frame used under a quarter: hold what the scene needs (a deeper frame

@@ -33,6 +33,11 @@ def positive(v) -> str | None:
     return None if v > 0 else f"must be > 0, got {v}"
 
 
+def non_negative(v) -> str | None:
+    """Check: value >= 0."""
+    return None if v >= 0 else f"must be >= 0, got {v}"
+
+
 def unit_interval(v) -> str | None:
     """Check: 0 < value <= 1."""
     return None if 0 < v <= 1 else f"must be in (0, 1], got {v}"
