@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 
+from .args_check import check_render_args
 from .errors import GuacaError
 
 
@@ -19,6 +20,7 @@ def _cmd_render(args) -> int:
     from .renderer import Renderer
     from .scene.loader import demo_scene, load_scene
 
+    check_render_args(args)
     scene = load_scene(args.scene) if args.scene else demo_scene()
     overrides = {}
     for item in args.set or []:
@@ -34,8 +36,8 @@ def _cmd_render(args) -> int:
         m = measure(
             renderer,
             scene,
-            args.width or renderer.config.resolution[0],
-            args.height or renderer.config.resolution[1],
+            renderer.config.resolution[0] if args.width is None else args.width,
+            renderer.config.resolution[1] if args.height is None else args.height,
             args.warmup,
             args.frames,
         )

@@ -11,6 +11,7 @@ import numpy as np
 from .context import create_context
 from .errors import ConfigError, UnsupportedMethodError
 from .gpu_resources import MeshCache, TextureCache
+from .limits import check_resolution
 from .materials import MaterialRegistry
 from .methods import method_class, method_ids
 from .passes import PASS_TYPES
@@ -192,7 +193,11 @@ class Renderer:
 
     def render(self, scene: Scene, width: int | None = None, height: int | None = None) -> FrameResult:
         """Render one frame of `scene` and read it back."""
-        w, h = width or self.config.resolution[0], height or self.config.resolution[1]
+        w, h = check_resolution(
+            self.caps.limits,
+            self.config.resolution[0] if width is None else width,
+            self.config.resolution[1] if height is None else height,
+        )
         cam = scene.camera
         draws = build_draw_list(scene, self.materials)
         frame = FrameState(self, scene, w, h, draws, cam.view_matrix(), cam.projection_matrix(w / h))
