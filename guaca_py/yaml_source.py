@@ -37,17 +37,39 @@ def key_name(path: tuple) -> str:
     return out
 
 
-def _convert(node: yaml.Node, path: tuple, lines: dict) -> Any:
+MAX_NESTING = 64  # config files are shallow; deeper means an alias cycle or a generated mistake
+
+
+def nesting_error(node: yaml.Node, file: str, key: str, cycle: bool) -> ConfigError:
+    """The error for an alias that contains itself, or for nesting past MAX_NESTING."""
+    if cycle:
+        return ConfigError(
+            "an alias refers to a node that contains it (a cycle)",
+            file,
+            node.start_mark.line + 1,
+            key or None,
+            "YAML aliases (*name) may only repeat finished nodes",
+        )
+    return ConfigError(
+        f"nested deeper than {MAX_NESTING} levels", file, node.start_mark.line + 1, key or None, "flatten the file"
+    )
+
+
+def _convert(node: yaml.Node, path: tuple, lines: dict, file: str = "<yaml>", open_: tuple = ()) -> Any:
     lines.setdefault(path, node.start_mark.line + 1)
+    if isinstance(node, (yaml.MappingNode, yaml.SequenceNode)):
+        if any(n is node for n in open_) or len(open_) >= MAX_NESTING:
+            raise nesting_error(node, file, key_name(path), any(n is node for n in open_))
+        open_ = open_ + (node,)
     if isinstance(node, yaml.MappingNode):
         out = {}
         for k, v in node.value:
             key = k.value
             lines[path + (key,)] = k.start_mark.line + 1
-            out[key] = _convert(v, path + (key,), lines)
+            out[key] = _convert(v, path + (key,), lines, file, open_)
         return out
     if isinstance(node, yaml.SequenceNode):
-        return [_convert(v, path + (i,), lines) for i, v in enumerate(node.value)]
+        return [_convert(v, path + (i,), lines, file, open_) for i, v in enumerate(node.value)]
     if node.tag == "tag:yaml.org,2002:str":
         return node.value
     if node.tag == "tag:yaml.org,2002:bool" and node.value.lower() not in ("true", "false"):
@@ -66,7 +88,7 @@ def load_yaml_text(text: str, file: str) -> Located:
             f"invalid YAML: {getattr(exc, 'problem', exc)}", file, line, hint="check indentation and brackets"
         ) from exc
     lines: dict[tuple, int] = {}
-    data = _convert(root, (), lines) if root is not None else {}
+    data = _convert(root, (), lines, file) if root is not None else {}
     return Located(data, lines, file)
 
 
