@@ -83,6 +83,12 @@ def _cmd_info(args) -> int:
     print(f"OpenGL:    {caps.version}")
     for k in ("atomic_int64", "fragment_interlock", "conservative_raster", "gpu_timers"):
         print(f"{k + ':':<22}{'yes' if d[k] else 'no'}")
+    if caps.limits is not None:
+        lim = caps.limits
+        free = f"{lim.available_bytes / 2**20:.0f} MiB" if lim.available_bytes else "not reported"
+        print(f"storage per buffer:   {lim.describe()}")
+        print(f"  reported SSBO block {lim.reported_block_bytes / 2**20:.0f} MiB (advisory), free memory {free}")
+        print(f"largest frame:        {lim.max_framebuffer[0]}x{lim.max_framebuffer[1]}")
     print(
         f"A-buffer insertion path: {caps.insertion_path} "
         f"({'64-bit atomicMax on (depth, pointer)' if caps.insertion_path == '64bit' else '32-bit CAS on immutable nodes'})"

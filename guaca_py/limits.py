@@ -12,8 +12,9 @@ smallest of
   leave memory to the host application).
 
 `GL_MAX_SHADER_STORAGE_BLOCK_SIZE` is recorded and shown by `guaca info` but is not a cap: Mesa
-advertises a fixed 128 MiB and addresses the whole bound range (measured on llvmpipe: a 197 MB
-presort_lf pool and a 168 MB dfb fragment array render exactly), so one rule holds for all methods.
+advertises a fixed 128 MiB and addresses the whole bound range (measured on llvmpipe: a 190 MB
+presort_lf pool, and 147 MB of dfb, sbuffer and paged_ll fragments, 4.59M fragments, give the same
+image as presort_lf), so one rule holds for all methods.
 Storage that the rule caps degrades like any full pool: fragments are dropped, counted and warned.
 """
 

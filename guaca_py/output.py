@@ -15,13 +15,13 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".p
 def check_writable(path: str | Path, option: str, suffixes: tuple[str, ...] | None = None) -> Path:
     """Fail now, before minutes of rendering, if `path` cannot be written: suffix, directory, permissions."""
     p = Path(path)
+    if p.is_dir():
+        raise ConfigError("is a directory", p, key=option, hint="give a file name inside it, e.g. DIR/out.png")
     if suffixes is not None and p.suffix.lower() not in suffixes:
         got = f"'{p.suffix}'" if p.suffix else "no extension"
         raise ConfigError(
             f"cannot tell the image format from {got}", p, key=option, hint=f"end the name with {', '.join(suffixes)}"
         )
-    if p.is_dir():
-        raise ConfigError("is a directory", p, key=option, hint="give a file name inside it, e.g. DIR/out.png")
     parent = p.parent
     for up in (parent, *parent.parents):
         if up.exists():

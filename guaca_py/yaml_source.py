@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +39,24 @@ def key_name(path: tuple) -> str:
 
 
 MAX_NESTING = 64  # config files are shallow; deeper means an alias cycle or a generated mistake
+
+
+def compose(text: str, file: str) -> yaml.Node | None:
+    """yaml.compose with room for MAX-nested documents; deeper ones are a ConfigError, not a RecursionError.
+
+    PyYAML's composer recurses several frames per level, so a 300-level scene exhausts Python's
+    default limit before the loaders can report the nesting at its line.
+    """
+    old = sys.getrecursionlimit()
+    sys.setrecursionlimit(max(old, 20000))
+    try:
+        return yaml.compose(text, Loader=yaml.SafeLoader)
+    except RecursionError:
+        raise ConfigError(
+            "nested too deeply for the YAML parser", file, hint=f"keep nesting under {MAX_NESTING} levels"
+        ) from None
+    finally:
+        sys.setrecursionlimit(old)
 
 
 def nesting_error(node: yaml.Node, file: str, key: str, cycle: bool) -> ConfigError:
@@ -80,7 +99,7 @@ def _convert(node: yaml.Node, path: tuple, lines: dict, file: str = "<yaml>", op
 def load_yaml_text(text: str, file: str) -> Located:
     """Parse YAML text; syntax errors become ConfigError with the line of the problem."""
     try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
+        root = compose(text, file)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = mark.line + 1 if mark is not None else None

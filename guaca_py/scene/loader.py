@@ -69,7 +69,7 @@ import numpy as np
 import yaml
 
 from ..errors import ConfigError
-from ..yaml_source import nesting_error
+from ..yaml_source import compose, nesting_error
 from .graph import LIGHT_TYPES, Camera, Light, MaterialInstance, MeshData, Node, Scene, Transform
 from .mesh_io import load_mesh_file
 from .primitives import PRIMITIVE_KINDS, make_primitive
@@ -468,7 +468,7 @@ class _Reader:
 def load_scene_text(text: str, source_name: str = "<string>", base_dir: str | Path | None = None) -> Scene:
     """Parse scene YAML; source_name is cited in errors, relative paths resolve against base_dir."""
     try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
+        root = compose(text, source_name)
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         context = exc.context
