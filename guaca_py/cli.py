@@ -7,13 +7,16 @@ import json
 import sys
 
 from .args_check import check_render_args
-from .errors import GuacaError
+from .errors import ConfigError, GuacaError
 
 
 def _parse_value(text: str):
     import yaml
 
-    return yaml.safe_load(text)
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"cannot read {text!r}: {exc}", key="--set", hint="e.g. --set budget_mb=64") from None
 
 
 def _cmd_render(args) -> int:
@@ -155,6 +158,15 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except FileNotFoundError as exc:
         print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except Exception as exc:
+        import moderngl
+
+        # a resource the driver refused (incomplete framebuffer, out of memory) is a device limit
+        if not isinstance(exc, moderngl.Error):
+            raise
+        hint = "lower the resolution or the scene's size"
+        print(f"error: the OpenGL device refused the request: {exc} ({hint})", file=sys.stderr)
         return 2
 
 

@@ -32,6 +32,9 @@ MEMORY_SHARE = 0.5  # of the memory reported free: the rest stays with the drive
 ENV_CAP = "GUACA_MAX_BUFFER_MB"
 _GPU_MEMORY_INFO_CURRENT_AVAILABLE_VIDMEM_NVX = 0x9049  # KiB
 _MIB = 1024 * 1024
+# G-buffer (3 half-float RGBA + depth), linear colour and two post targets (float RGBA), A-buffer
+# heads and saturation depth, light grid: an upper estimate of what a frame holds per pixel
+FRAME_BYTES_PER_PIXEL = 96
 
 
 @dataclass(frozen=True)
@@ -151,6 +154,14 @@ def check_resolution(limits: DeviceLimits | None, width, height, what: str = "--
             f"{limits.describe()}",
             key=what,
             hint=f"render at most about {most}x{most} pixels",
+        )
+    frame_bytes = width * height * FRAME_BYTES_PER_PIXEL
+    if limits.available_bytes and frame_bytes > limits.available_bytes * MEMORY_SHARE:
+        raise LimitError(
+            f"{width}x{height} needs about {frame_bytes / _MIB:.0f} MiB of render targets; the device reports "
+            f"{limits.available_bytes / _MIB:.0f} MiB free",
+            key=what,
+            hint="render a smaller image",
         )
     return width, height
 

@@ -115,6 +115,14 @@ class MaterialDescription:
         return out
 
 
+def _numeric_text(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def _strip_comments(src: str) -> str:
     src = re.sub(r"/\*.*?\*/", "", src, flags=re.S)
     return re.sub(r"//[^\n]*", "", src)
@@ -129,9 +137,12 @@ def check_value(typ: str, value, file, line, key):
         return value
     if typ in ("float", "int"):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(
-                f"expected {typ}, got {type(value).__name__} {value!r}", file, line, key, "write a plain number"
-            )
+            hint = "write a plain number"
+            if isinstance(value, str) and _numeric_text(value):
+                hint = (
+                    f"YAML reads {value!r} as text: write it with a dot and a signed exponent, e.g. {float(value):.1e}"
+                )
+            raise ConfigError(f"expected {typ}, got {type(value).__name__} {value!r}", file, line, key, hint)
         if typ == "int" and not float(value).is_integer():
             raise ConfigError(f"expected int, got {value!r}", file, line, key)
         return int(value) if typ == "int" else float(value)

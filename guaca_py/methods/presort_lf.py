@@ -68,9 +68,9 @@ class PreSortLF(TransparencyMethod):
     def _overflow_hint(self) -> str:
         """What to do about an overflow, from what bounded the pool."""
         if self.capacity >= self.max_capacity(self._pixels):
+            et = "" if self.early_termination else ", or use a method with early termination (presort_lf_et)"
             return (
-                f"the pool is at the device's limit ({self.caps.limits.describe()}); "
-                "render fewer layers or pixels, or use early termination"
+                f"the pool is at the device's limit ({self.caps.limits.describe()}); render fewer layers or pixels{et}"
             )
         if self.settings["budget_mb"] != "auto":
             return "raise transparency.budget_mb or use 'auto'"
