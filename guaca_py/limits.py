@@ -54,7 +54,7 @@ class DeviceLimits:
 
     def describe(self) -> str:
         """The cap in words: size and what sets it."""
-        return f"{self.max_buffer_bytes / _MIB:.0f} MiB per buffer, {self.binding}"
+        return f"{self.max_buffer_bytes / _MIB:.4g} MiB per buffer, {self.binding}"
 
 
 def _nvx_available_bytes(ext: set) -> int | None:
@@ -174,3 +174,11 @@ def pool_node_limit(limits: DeviceLimits | None, head_words: int, link_bytes: in
         2,
         min(limits.elements(payload_bytes), limits.elements(link_bytes, head_words * link_bytes), 2**32 - 1),
     )
+
+
+def require_bytes(limits: DeviceLimits | None, nbytes: int, what: str, hint: str) -> None:
+    """A per-pixel buffer that cannot shrink (no overflow path) must fit the storage rule, else a LimitError."""
+    if limits is not None and nbytes > limits.max_buffer_bytes:
+        raise LimitError(
+            f"needs a {nbytes / _MIB:.4g} MiB buffer; the device holds {limits.describe()}", key=what, hint=hint
+        )

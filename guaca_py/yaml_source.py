@@ -116,4 +116,12 @@ def load_yaml_file(path: str | Path) -> Located:
     p = Path(path)
     if not p.is_file():
         raise ConfigError("file not found", p, hint="check the path")
-    return load_yaml_text(p.read_text(encoding="utf-8"), str(p))
+    data = p.read_bytes()
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise ConfigError(
+            f"not UTF-8 text (byte 0x{data[exc.start]:02x})", p, line, hint="save the file as UTF-8"
+        ) from None
+    return load_yaml_text(text, str(p))

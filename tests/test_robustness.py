@@ -111,6 +111,12 @@ def test_alias_cycle_in_pipeline_passes(tmp_path, capsys):
     expect_error(rc, err, str(p), "cycle")
 
 
+def test_pipeline_not_utf8(tmp_path, capsys):
+    p = write(tmp_path / "p.yaml", b"passes:\n  - geometry: {}  # caf\xe9\n")
+    rc, _, err = run(["--pipeline", p, "--out", tmp_path / "o.png"], capsys)
+    expect_error(rc, err, f"{p}:2", "not UTF-8 text (byte 0xe9)")
+
+
 def test_pass_listed_twice(tmp_path, capsys):
     text = "passes:\n  - geometry: {}\n  - light_culling: {}\n  - composite: {}\n  - fxaa: {}\n  - fxaa: {}\n"
     p = write(tmp_path / "p.yaml", text)
@@ -389,6 +395,26 @@ def test_storage_cap_same_rule_for_every_method(renderer_factory, method, monkey
     assert 0 < fr["stored"] <= 8192 and dropped > 0
     assert any("GUACA_MAX_BUFFER_MB" in w for w in frame.stats["warnings"]), frame.stats["warnings"]
     assert not any("page_size" in w or "budget_mb" in w for w in frame.stats["warnings"])
+
+
+@pytest.mark.parametrize(
+    "method,setting,key",
+    [
+        ("kbuffer", "k=64", "transparency.k"),
+        ("stochastic", "samples=32", "transparency.samples"),
+        ("multilayer_depth_peeling", "layers_per_pass=32", "transparency.layers_per_pass"),
+    ],
+)
+def test_fixed_per_pixel_storage_beyond_the_cap_is_refused(tmp_path, capsys, monkeypatch, method, setting, key):
+    """Storage without an overflow path (k slots, S samples, M slots per pixel) is refused, naming the setting."""
+    monkeypatch.setenv("GUACA_MAX_BUFFER_MB", "0.25")
+    s = write(tmp_path / "s.yaml", scene_text(stack(2)))
+    rc, _, err = run(
+        [s, "--method", method, "--set", setting, "--width", 64, "--height", 64, "--out", tmp_path / "o.png"], capsys
+    )
+    expect_error(
+        rc, err, key, "the device holds 0.25 MiB per buffer, lowered by GUACA_MAX_BUFFER_MB", "or the resolution"
+    )
 
 
 def test_auto_regrowth_sizes_to_the_need(renderer_factory):

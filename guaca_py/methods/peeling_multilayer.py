@@ -16,6 +16,7 @@ pool_mb 'auto' the pool then grows to the pass's need, so the next pass cannot o
 
 from __future__ import annotations
 
+from ..limits import require_bytes
 from ..pipeline.settings import Setting, positive
 from .peeling import PeelingMethod
 
@@ -82,6 +83,12 @@ class MultiLayerDepthPeeling(PeelingMethod):
             for b in (self._slots, self._dropped):
                 if b is not None:
                     b.release()
+            require_bytes(
+                self.caps.limits,
+                pixels * self.layers * 4,
+                "transparency.layers_per_pass",
+                f"lower layers_per_pass (now {self.layers}) or the resolution",
+            )
             self._pixels = pixels
             self._slots = ctx.buffer(reserve=pixels * self.layers * 4)
             self._slots.clear()
