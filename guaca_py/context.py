@@ -28,6 +28,7 @@ class Capabilities:
     software: bool  # llvmpipe / softpipe / swrast
     framebuffer_fetch: bool = False  # EXT_shader_framebuffer_fetch: ordered read-modify-write of colour targets
     limits: DeviceLimits | None = None  # buffer and render-target sizes (guaca_py/limits.py)
+    shader_ballot: bool = False  # ARB_shader_ballot + ARB_gpu_shader_int64: per-subgroup aggregation of atomics
 
     def as_dict(self) -> dict:
         """Plain dict for JSON output."""
@@ -51,6 +52,7 @@ def detect_capabilities(ctx, disable: tuple[str, ...] = ()) -> Capabilities:
         conservative_raster="GL_NV_conservative_raster" in ext,
         gpu_timers=("GL_ARB_timer_query" in ext or ctx.version_code >= 330) and not software,
         framebuffer_fetch="GL_EXT_shader_framebuffer_fetch" in ext,
+        shader_ballot="GL_ARB_shader_ballot" in ext and "GL_ARB_gpu_shader_int64" in ext,
     )
     for name in disable:
         if name not in caps:

@@ -59,6 +59,9 @@ class Renderer:
         self.meshes = MeshCache(self.ctx)
         self.textures = TextureCache(self.ctx)
         self._fullscreen_vaos: dict[int, object] = {}
+        self._queries: dict[tuple[str, int], object] = {}
+        self._frame_index = 0
+        self._previous_timers: dict | None = None
         self.set_method(method or self.config.transparency["method"], method_overrides)
         self.passes = [PASS_TYPES[p.name](self, p.settings) for p in self.config.passes]
         available = set(_FIRST_RESOURCES)
@@ -179,20 +182,32 @@ class Renderer:
         vao.render(moderngl.TRIANGLES, vertices=3)
 
     # ------------------------------------------------------------------ frames
-    def _timed(self, fn) -> tuple[float, str]:
+    def _timed(self, name: str, fn):
+        """Run `fn`; returns a callable giving its time in ms, and the timer kind.
+
+        GPU timer queries are read only after the whole frame was submitted (reading one waits for
+        the GPU). Two query objects per pass alternate from frame to frame, so a frame loop without
+        read-back can report the previous frame's times without waiting for this one.
+        """
         if self.caps.gpu_timers:
-            q = self.ctx.query(time=True)
+            key = (name, self._frame_index % 2)
+            q = self._queries.get(key)
+            if q is None:
+                q = self._queries[key] = self.ctx.query(time=True)
             with q:
                 fn()
-            return q.elapsed / 1e6, "gpu"
+            return (lambda: q.elapsed / 1e6), "gpu"
         self.ctx.finish()
         t0 = time.perf_counter()
         fn()
         self.ctx.finish()
-        return (time.perf_counter() - t0) * 1e3, "wall"
+        ms = (time.perf_counter() - t0) * 1e3
+        return (lambda: ms), "wall"
 
-    def render(self, scene: Scene, width: int | None = None, height: int | None = None) -> FrameResult:
-        """Render one frame of `scene` and read it back."""
+    def render(
+        self, scene: Scene, width: int | None = None, height: int | None = None, *, read_back: bool = True
+    ) -> FrameResult:
+        """Render one frame of `scene`; the image is read back unless `read_back` is False."""
         w, h = check_resolution(
             self.caps.limits,
             self.config.resolution[0] if width is None else width,
@@ -214,17 +229,25 @@ class Renderer:
             }
         )
         t0 = time.perf_counter()
+        timers = {}
         for p in self.passes:
             for _attempt in range(1 + 16):
                 warned = len(frame.stats.get("warnings", []))
-                ms, kind = self._timed(lambda p=p: p.execute(frame))
+                timer, kind = self._timed(p.name, lambda p=p: p.execute(frame))
                 if not frame.rerender:
                     break
                 frame.rerender = False
                 frame.stats["regrown"] += 1
                 del frame.stats.get("warnings", [])[warned:]  # that attempt's overflow is repaired
-            frame.stats["passes"][p.name] = {"ms": round(ms, 4)}
+            timers[p.name] = timer
             frame.stats["timer"] = kind
+        if read_back or kind != "gpu" or self._previous_timers is None:
+            frame.stats["passes"] = {name: {"ms": round(t(), 4)} for name, t in timers.items()}
+        else:  # the previous frame's queries: finished or nearly, so reading them does not stall this one
+            frame.stats["passes"] = {name: {"ms": round(t(), 4)} for name, t in self._previous_timers.items()}
+            frame.stats["passes_of"] = "previous frame"
+        self._previous_timers = None if read_back else timers
+        self._frame_index += 1
         frame.stats.setdefault("memory", {}).update(self.method.memory() if frame.transparent_draws else {})
         declared = self.method.geometry_passes
         frame.stats.setdefault(
@@ -235,6 +258,8 @@ class Renderer:
                 "a pass took longer than the 32-bit GPU timer result can hold (4.29 s); its time is clipped"
             )
         frame.stats["frame_wall_ms"] = round((time.perf_counter() - t0) * 1e3, 3)
+        if not read_back:
+            return FrameResult(None, frame.stats, texture=frame.resources["color"])
         return self._read_back(frame)
 
     def _read_back(self, frame) -> FrameResult:
@@ -253,3 +278,4 @@ class Renderer:
         self.method.release()
         self.meshes.release()
         self.textures.release()
+        self._queries.clear()  # moderngl has no release for queries: reusing them bounds them at two per pass

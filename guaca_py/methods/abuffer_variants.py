@@ -8,8 +8,6 @@ PreSortLF's node pool, payload, counters, overflow reporting and 'auto' growth.
 
 from __future__ import annotations
 
-import numpy as np
-
 from ..pipeline.settings import Setting, positive
 from .base import LOCK_SETTING, resolve_lock
 from .presort_lf import COUNTERS, NODE_PAYLOAD_BYTES, PreSortLF
@@ -34,15 +32,11 @@ class ABufferVariant(PreSortLF):
         self.path, self.link_bytes = "32bit", 4
         self.node_bytes = NODE_PAYLOAD_BYTES + self.link_bytes
 
-    def _counts(self) -> dict[str, int]:
-        """The counter buffer, by name (one small read-back)."""
-        return dict(zip(self.counters, np.frombuffer(self._counters.read(), dtype=np.uint32).tolist()))
-
     def finish(self, frame) -> bool:
         """PreSortLF's counters and pool growth, plus this method's own counters."""
         again = super().finish(frame)
         frame.stats["geometry_passes"] = 1
-        abandoned = self._counts()["lock_abandoned"]
+        abandoned = self.read_counters()["lock_abandoned"]
         frame.stats["fragments"]["lock_abandoned"] = abandoned
         if abandoned:
             frame.stats.setdefault("warnings", []).append(
@@ -122,7 +116,7 @@ class PreSortCS(ABufferVariant):
 
     def extensions(self) -> str:
         """Fragment shader interlock where it is the critical section."""
-        return _INTERLOCK_EXT if self.lock == "interlock" else ""
+        return super().extensions() + (_INTERLOCK_EXT if self.lock == "interlock" else "")
 
     def finish(self, frame) -> bool:
         """Counters, plus which critical section ran."""
@@ -160,7 +154,7 @@ class _PostBase(ABufferVariant):
     def after_composite(self, frame) -> None:
         """Fragments the resolve left out (fixed array full, or walk bound) into stats and warnings."""
         frame.ctx.memory_barrier()
-        c = self._counts()
+        c = self.read_counters(fresh=True)  # the composite counted after the geometry read
         fr = frame.stats.setdefault("fragments", {})
         fr["truncated"], fr["truncated_pixels"] = c["truncated"], c["truncated_pixels"]
         if c["truncated"]:

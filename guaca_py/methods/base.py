@@ -12,6 +12,10 @@ if TYPE_CHECKING:
     from ..pipeline.frame import FrameState
 
 
+# Extensions that only mean something in a fragment shader; the composite resolve is compute.
+_FRAGMENT_ONLY_EXTENSIONS = ("GL_ARB_fragment_shader_interlock", "GL_EXT_shader_framebuffer_fetch")
+
+
 class TransparencyMethod:
     """A strategy for transparent fragments: how the geometry pass stores them, how composite resolves them.
 
@@ -62,6 +66,14 @@ class TransparencyMethod:
     def extensions(self) -> str:
         """GLSL #extension lines the method's code needs."""
         return ""
+
+    def resolve_extensions(self) -> str:
+        """The #extension lines of extensions() that the compute resolve can use (fragment-only ones dropped)."""
+        return "".join(
+            line + "\n"
+            for line in self.extensions().splitlines()
+            if line.strip() and not any(f in line for f in _FRAGMENT_ONLY_EXTENSIONS)
+        )
 
     def prepare(self, frame: FrameState) -> None:
         """Allocate/clear per-frame storage before transparent geometry is drawn."""

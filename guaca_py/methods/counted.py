@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from ..gpu_counters import CounterBlock, StagedReader
 from ..pipeline.settings import Setting, non_negative, positive
 from ..prefix_sum import GpuFill, PrefixSum, dispatch_grid
 from .base import TransparencyMethod
@@ -51,6 +52,8 @@ class _CountedStorage(TransparencyMethod):
         self._pixels = 0
         self._bufs: dict = {}
         self._scan = self._fill = None
+        self._counters: CounterBlock | None = None
+        self._reader: StagedReader | None = None
         self._last: dict = {}
 
     # ------------------------------------------------------------------ helpers
@@ -58,6 +61,7 @@ class _CountedStorage(TransparencyMethod):
         if self._scan is None:
             self._scan = PrefixSum(frame.ctx, frame.renderer.shaders)
             self._fill = GpuFill(frame.renderer.shaders)
+            self._reader = StagedReader(frame.ctx)
 
     def _buffer(self, ctx, name: str, nbytes: int):
         """A buffer of exactly `nbytes` (at least 4), re-specified only when the size changes."""
@@ -85,12 +89,12 @@ class _CountedStorage(TransparencyMethod):
         return f"the device's limit, {where}; render fewer layers or pixels"
 
     def _reset_counters(self, ctx, alloc_start: int = 0) -> None:
-        values = [0] * len(COUNTERS)
-        values[COUNTERS.index("alloc")] = alloc_start
-        self._buffer(ctx, "counters", len(COUNTERS) * 4).write(np.array(values, dtype=np.uint32).tobytes())
+        if self._counters is None:
+            self._counters = CounterBlock(ctx, COUNTERS)
+        self._counters.reset(alloc=alloc_start)
 
     def _read_counters(self) -> dict:
-        return dict(zip(COUNTERS, np.frombuffer(self._bufs["counters"].read(), dtype=np.uint32).tolist()))
+        return self._counters.read()
 
     def _state_begin(self, frame) -> None:
         """Transparent draws test against the opaque depth without writing it."""
@@ -109,7 +113,10 @@ class _CountedStorage(TransparencyMethod):
 
     def _bind(self) -> None:
         for binding, name in self._bindings().items():
-            self._bufs[name].bind_to_storage_buffer(binding)
+            if name == "counters":
+                self._counters.bind(binding)
+            else:
+                self._bufs[name].bind_to_storage_buffer(binding)
 
     def _bindings(self) -> dict[int, str]:
         raise NotImplementedError
@@ -156,8 +163,10 @@ class _CountedStorage(TransparencyMethod):
         for b in self._bufs.values():
             b.release()
         self._bufs = {}
-        if self._scan is not None:
-            self._scan.release()
+        for obj in (self._scan, self._counters, self._reader):
+            if obj is not None:
+                obj.release()
+        self._scan = self._counters = self._reader = None
         self._pixels = 0
 
 
@@ -198,7 +207,7 @@ class DynamicFragmentBuffer(_CountedStorage):
         """Per-pixel offsets from the counts; returns the frame's fragment total (one word read back)."""
         n = frame.pixel_count
         self._scan.run(self._bufs["counts"], self._bufs["pixels"], n)
-        return int(np.frombuffer(self._bufs["pixels"].read(size=4, offset=n * 4), dtype=np.uint32)[0])
+        return int(np.frombuffer(self._reader.read(self._bufs["pixels"], 4, n * 4), dtype=np.uint32)[0])
 
     def render_transparent(self, frame) -> None:
         """Count pass, addressing, exact allocation, store pass."""
@@ -293,7 +302,7 @@ class SBuffer(DynamicFragmentBuffer):
         prog.run(*dispatch_grid(math.ceil(n / 256)))
         frame.ctx.memory_barrier()
         self._scan.run(self._bufs["groups"], self._bufs["group_base"], s)
-        return int(np.frombuffer(self._bufs["group_base"].read(size=4, offset=s * 4), dtype=np.uint32)[0])
+        return int(np.frombuffer(self._reader.read(self._bufs["group_base"], 4, s * 4), dtype=np.uint32)[0])
 
     def memory(self) -> dict:
         """As dfb, plus the S counters and group offsets."""

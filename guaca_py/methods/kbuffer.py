@@ -8,8 +8,7 @@ approx/kbuffer_insert.glsl.j2). Fragments beyond k are merged into the farthest 
 
 from __future__ import annotations
 
-import numpy as np
-
+from ..gpu_counters import CounterBlock
 from ..limits import require_bytes
 from ..pipeline.settings import Setting
 from .approximate import fill_uint_buffer
@@ -70,14 +69,14 @@ class KBuffer(TransparencyMethod):
             self._pixels = frame.pixel_count
             self._heads = frame.ctx.buffer(reserve=self._pixels * HEAD_BYTES)
             self._slots = frame.ctx.buffer(reserve=self._pixels * self.k * SLOT_BYTES)
-            self._counters = frame.ctx.buffer(reserve=len(COUNTERS) * 4)
+            self._counters = CounterBlock(frame.ctx, COUNTERS)
         fill_uint_buffer(frame, self._heads, self._pixels * 2, 0)
-        self._counters.write(np.zeros(len(COUNTERS), dtype=np.uint32).tobytes())
+        self._counters.reset()
 
     def _bind(self) -> None:
         self._heads.bind_to_storage_buffer(0)
         self._slots.bind_to_storage_buffer(1)
-        self._counters.bind_to_storage_buffer(2)
+        self._counters.bind(2)
 
     def render_transparent(self, frame) -> None:
         """One geometry pass against the opaque depth (writes off); every fragment tries to insert."""
@@ -94,7 +93,7 @@ class KBuffer(TransparencyMethod):
 
     def finish(self, frame) -> bool:
         """Counters → stats; overflow and lock-guard drops become warnings."""
-        c = dict(zip(COUNTERS, np.frombuffer(self._counters.read(), dtype=np.uint32).tolist()))
+        c = self._counters.read()
         evicted = c["inserted"] - c["filled"]  # every insert into a full pixel evicts one
         rejected = c["merged"] + c["dropped"] - evicted  # fragments that arrived behind a full pixel
         total = c["inserted"] + rejected + c["guard"]

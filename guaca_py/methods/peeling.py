@@ -18,9 +18,8 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from ..errors import UnsupportedMethodError
+from ..gpu_counters import CounterBlock
 from ..pipeline.settings import Setting
 from .base import TransparencyMethod
 
@@ -150,18 +149,16 @@ class PeelingMethod(TransparencyMethod):
 
     def _counter_buffer(self, frame):
         if self._counters is None:
-            self._counters = frame.ctx.buffer(reserve=len(COUNTERS) * 4)
+            self._counters = CounterBlock(frame.ctx, COUNTERS)
         return self._counters
 
     def reset_counters(self, alloc: int = 0) -> None:
         """Zero the counters (the node allocator starts at `alloc`)."""
-        words = [0] * len(COUNTERS)
-        words[COUNTERS.index("alloc")] = alloc
-        self._counters.write(np.array(words, dtype=np.uint32).tobytes())
+        self._counters.reset(alloc=alloc)
 
     def read_counters(self) -> dict:
         """Counter words as a dict."""
-        return dict(zip(COUNTERS, np.frombuffer(self._counters.read(), dtype=np.uint32).tolist()))
+        return self._counters.read()
 
     # ------------------------------------------------------------------ frame
     def prepare(self, frame) -> None:
@@ -200,7 +197,7 @@ class PeelingMethod(TransparencyMethod):
                 self._tex[name_].bind_to_image(unit, read=True, write=True)
         for i, n in enumerate(slots):
             self._tex[n].bind_to_image(4 + i, read=True, write=True)
-        self._counters.bind_to_storage_buffer(4)
+        self._counters.bind(4)
         prog.run(math.ceil(frame.width / 8), math.ceil(frame.height / 8), 1)
         frame.ctx.memory_barrier()
 
@@ -221,7 +218,7 @@ class PeelingMethod(TransparencyMethod):
         g["depth"].use(location=UNIT_OPAQUE)
         if "range" in self._tex:
             self._tex["range"].use(location=UNIT_RANGE)
-        self._counters.bind_to_storage_buffer(4)
+        self._counters.bind(4)
         return {"gua_peel_bounds": UNIT_BOUNDS, "gua_peel_opaque": UNIT_OPAQUE, "gua_peel_range": UNIT_RANGE}
 
     def geometry_pass(
@@ -348,7 +345,7 @@ class PeelingMethod(TransparencyMethod):
             out[f"peel_{name}"] = nbytes
             out[f"peel_{name}_used"] = nbytes
         if self._counters is not None:
-            out["peel_counters"] = out["peel_counters_used"] = self._counters.size
+            out["peel_counters"] = out["peel_counters_used"] = self._counters.buffer.size
         return out
 
     def _release_textures(self) -> None:

@@ -4,15 +4,15 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
+from ..gpu_counters import CounterBlock
 from ..limits import pool_node_limit
 from ..pipeline.settings import Setting, non_negative, positive
 from .base import TransparencyMethod
 
 NODE_PAYLOAD_BYTES = 32  # depth + 7 payload words, see abuffer/layout.glsl.j2
-COUNTERS = ("alloc", "overflow", "et_dropped", "et_culled", "stored", "guard")
+COUNTERS = ("alloc", "unlinked", "et_dropped", "et_culled", "guard")  # abuffer/layout.glsl.j2, same order
 _INT64_EXT = "#extension GL_ARB_gpu_shader_int64 : require\n#extension GL_NV_shader_atomic_int64 : require\n"
+_BALLOT_EXT = "#extension GL_ARB_gpu_shader_int64 : require\n#extension GL_ARB_shader_ballot : require\n"
 
 
 def _budget(v) -> str | None:
@@ -54,6 +54,7 @@ class PreSortLF(TransparencyMethod):
         self.regrown = 0
         self._want = 0  # pool size requested for the next prepare()
         self._last = {}
+        self._counts: dict[str, int] | None = None
 
     # ------------------------------------------------------------------ storage
     def _initial_capacity(self, pixels: int) -> int:
@@ -83,7 +84,7 @@ class PreSortLF(TransparencyMethod):
             self._pixels, self.capacity = pixels, capacity
             self._links = ctx.buffer(reserve=(pixels * (1 + self.extra_slots) + capacity) * self.link_bytes)
             self._nodes = ctx.buffer(reserve=capacity * NODE_PAYLOAD_BYTES)
-            self._counters = ctx.buffer(reserve=len(self.counters) * 4)
+            self._counters = CounterBlock(ctx, self.counters)
             self._cull = ctx.texture(size, 1, dtype="u4")
 
     def prepare(self, frame) -> None:
@@ -95,7 +96,8 @@ class PreSortLF(TransparencyMethod):
         else:
             cap = self._initial_capacity(frame.pixel_count)
         self._alloc(frame.ctx, frame.pixel_count, cap, (frame.width, frame.height))
-        self._counters.write(np.array([1] + [0] * (len(self.counters) - 1), dtype=np.uint32).tobytes())
+        self._counters.reset(alloc=1)  # node 0 is the null link
+        self._counts = None
         clear = frame.renderer.shaders.compute("abuffer/clear.comp.j2")
         self._links.bind_to_storage_buffer(0)
         self._cull.bind_to_image(0, read=False, write=True)
@@ -109,7 +111,7 @@ class PreSortLF(TransparencyMethod):
     def _bind(self) -> None:
         self._links.bind_to_storage_buffer(0)
         self._nodes.bind_to_storage_buffer(1)
-        self._counters.bind_to_storage_buffer(2)
+        self._counters.bind(2)
 
     def threshold(self) -> float:
         """Insertion saturation threshold; above 1 means never saturate."""
@@ -136,11 +138,14 @@ class PreSortLF(TransparencyMethod):
 
     def finish(self, frame) -> bool:
         """Read counters; with an 'auto' budget, grow the pool to the need and ask for a re-render."""
-        c = dict(zip(self.counters, np.frombuffer(self._counters.read(), dtype=np.uint32).tolist()))
+        c = self.read_counters()
         requested = c["alloc"] - 1  # node 0 is the null node
         used = min(requested, self.capacity - 1)
+        # allocations past the pool failed (overflow); the others were linked unless counted unlinked
+        c["overflow"] = requested - used
+        stored = used - c["unlinked"]
         frame.stats["fragments"] = {
-            "stored": c["stored"],
+            "stored": stored,
             "overflow": c["overflow"],
             "et_dropped": c["et_dropped"],
             "et_culled": c["et_culled"],
@@ -170,6 +175,12 @@ class PreSortLF(TransparencyMethod):
         self.regrown = 0  # max_regrow bounds the re-renders of one frame, not of the renderer's life
         return False
 
+    def read_counters(self, fresh: bool = False) -> dict[str, int]:
+        """This frame's counters by name (one small GPU-side copy, then a read of the copy)."""
+        if self._counts is None or fresh:
+            self._counts = self._counters.read()
+        return self._counts
+
     def capacity_request(self, nodes: int) -> None:
         """Resize the pool at the next prepare() (the current frame keeps reading this one), within the device's limit.
 
@@ -195,11 +206,17 @@ class PreSortLF(TransparencyMethod):
 
     def template_vars(self) -> dict:
         """Insertion path and loop bound."""
-        return {"ab_path": self.path, "max_steps": int(self.settings["max_steps"])}
+        ballot = self.caps.shader_ballot
+        return {
+            "ab_path": self.path,
+            "max_steps": int(self.settings["max_steps"]),
+            "subgroup_counts": ballot,
+            "subgroup_alloc": ballot and self.path == "64bit",
+        }
 
     def extensions(self) -> str:
         """64-bit atomics where the path uses them."""
-        return _INT64_EXT if self.path == "64bit" else ""
+        return (_INT64_EXT if self.path == "64bit" else "") + (_BALLOT_EXT if self.caps.shader_ballot else "")
 
     def bind_composite(self, frame, program) -> None:
         """The composite walks the same lists."""

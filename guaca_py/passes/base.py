@@ -35,11 +35,18 @@ class Pass:
         """Free GPU resources held between frames."""
 
 
+OUTPUT_IMAGE_UNIT = 7  # image units below may be bound by methods (A-buffer saturation depth: 0)
+_IMAGE_FORMATS = {"f1": "rgba8", "f4": "rgba32f"}
+
+
 class FullscreenPass(Pass):
-    """A post pass drawing one screen-covering triangle into an RGBA8/RGBA16F target."""
+    """A pass writing every pixel of an RGBA8/RGBA32F target: a compute shader, or a full-screen triangle."""
 
     template: ClassVar[str] = ""
     target_dtype: ClassVar[str] = "f1"
+    # Compute wherever no rasterizer is needed: fragment shading runs on a small part of
+    # data-centre GPUs (H100: the same arithmetic ran 32x slower in a fragment shader).
+    compute: ClassVar[bool] = False
 
     def __init__(self, renderer, settings):
         super().__init__(renderer, settings)
@@ -47,14 +54,19 @@ class FullscreenPass(Pass):
 
     def program(self, frame: FrameState):
         """The compiled program of this pass (templated on its settings)."""
-        return self.renderer.shaders.program(
-            (self.name, tuple(sorted(self.settings.items()))),
-            {
-                "vertex_shader": ("composite/fullscreen.vert.j2", {}),
-                "fragment_shader": (self.template, dict(self.settings)),
-            },
-            label=self.name,
-        )
+        return self.compile(dict(self.settings), (self.name, tuple(sorted(self.settings.items()))))
+
+    def compile(self, variables: dict, key, template: str | None = None):
+        """Compile `template` (default: the pass's) as this pass's kind of program."""
+        template = template or self.template
+        if self.compute:
+            variables = dict(
+                variables, output_image_unit=OUTPUT_IMAGE_UNIT, output_format=_IMAGE_FORMATS[self.target_dtype]
+            )
+            stages = {"compute_shader": (template, variables)}
+        else:
+            stages = {"vertex_shader": ("composite/fullscreen.vert.j2", {}), "fragment_shader": (template, variables)}
+        return self.renderer.shaders.program(key, stages, label=self.name)
 
     def target(self, frame: FrameState):
         """The output framebuffer, reallocated on resolution change."""
@@ -68,16 +80,24 @@ class FullscreenPass(Pass):
         return self._target
 
     def run_fullscreen(self, frame: FrameState, prog, inputs: dict) -> object:
-        """Bind input textures to units, draw, return the output texture."""
+        """Bind input textures to units, write every pixel of the target, return the output texture."""
         fbo = self.target(frame)
-        fbo.use()
-        self.ctx.disable(self.renderer.moderngl.DEPTH_TEST | self.renderer.moderngl.BLEND)
         for unit, (uname, tex) in enumerate(inputs.items()):
             tex.use(location=unit)
             if uname in prog:
                 prog[uname] = unit
+        out = fbo.color_attachments[0]
+        if self.compute:
+            out.bind_to_image(OUTPUT_IMAGE_UNIT, read=False, write=True)
+            if "gua_size" in prog:
+                prog["gua_size"] = (frame.width, frame.height)
+            prog.run(-(-frame.width // 8), -(-frame.height // 8), 1)
+            self.ctx.memory_barrier()  # later passes sample the result (or read it back)
+            return out
+        fbo.use()
+        self.ctx.disable(self.renderer.moderngl.DEPTH_TEST | self.renderer.moderngl.BLEND)
         self.renderer.fullscreen(prog)
-        return fbo.color_attachments[0]
+        return out
 
     def release(self) -> None:
         """Free the output target."""

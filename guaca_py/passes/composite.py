@@ -14,28 +14,22 @@ class CompositePass(FullscreenPass):
     reads = ("gbuffer", "transparent", "light_grid")
     writes = ("hdr",)
     target_dtype = "f4"
+    compute = True
+    template = "composite/shade_composite.comp.j2"
 
     def program(self, frame):
         """Composite program for this method, light lookup and transparency presence."""
-        r = self.renderer
         method = frame.resources.get("transparent")
         lights = frame.shading_vars()
         tvars = dict(
             has_transparency=method is not None,
             **lights,
-            method_extensions=method.extensions() if method else "",
+            method_extensions=method.resolve_extensions() if method else "",
             method_resolve_template=method.resolve_template() if method else "",
             **(method.template_vars() if method else {}),
         )
         key = ("composite", tuple(sorted((k, str(v)) for k, v in tvars.items())), method.id if method else None)
-        return r.shaders.program(
-            key,
-            {
-                "vertex_shader": ("composite/fullscreen.vert.j2", {}),
-                "fragment_shader": ("composite/shade_composite.frag.j2", tvars),
-            },
-            label="composite",
-        )
+        return self.compile(tvars, key)
 
     def execute(self, frame) -> None:
         """Shade every pixel; writes frame.resources['hdr']."""

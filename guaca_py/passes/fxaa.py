@@ -12,7 +12,8 @@ class FxaaPass(FullscreenPass):
     name = "fxaa"
     reads = ("ldr",)
     writes = ("ldr",)
-    template = "post/fxaa.frag.j2"
+    template = "post/fxaa.comp.j2"
+    compute = True
     SETTINGS = {
         "edge_threshold": Setting(NUMBER, 0.125, "relative luma contrast that counts as an edge", check=unit_interval)
     }

@@ -38,7 +38,10 @@ class GeometryPass(Pass):
         self.ctx.disable(mgl.BLEND | mgl.CULL_FACE)
         self.ctx.enable(mgl.DEPTH_TEST)
         self.ctx.depth_func = "<"
-        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        # depth only: the composite reads the colour targets only where an opaque surface was drawn
+        self._depth_only.depth_mask = True  # transparent passes leave it off
+        self._depth_only.clear(depth=1.0)
+        fbo.use()  # clearing bound the depth-only framebuffer
         frame.draw_opaque()
         g = {
             "fbo": fbo,

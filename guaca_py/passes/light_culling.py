@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from ..errors import DeviceError
+from ..gpu_counters import UploadBuffer
 from ..pipeline.settings import Setting, positive
 from .base import Pass
 from .light_grid_cpu import compare_grids, exact_tile_lights, grid_shape, unpack_grid
@@ -60,7 +61,8 @@ class LightCullingPass(Pass):
 
     def __init__(self, renderer, settings):
         super().__init__(renderer, settings)
-        self._buffer = self._everywhere = self._grid = self._fbo = None
+        self._lights = UploadBuffer(self.ctx)  # shaders read it per fragment: GPU-placed, filled by copy
+        self._everywhere = self._grid = self._fbo = None
         self._grid_key = None
         self.layers_allocated = 1
         self.packed_lights: list = []  # lights in bit order of the last frame
@@ -113,13 +115,6 @@ class LightCullingPass(Pass):
         everywhere = spans | (rows[:, 7] == LIGHT_TYPE_CODE["directional"])
         return np.concatenate([idx[~everywhere], idx[everywhere]]), int(np.count_nonzero(~everywhere))
 
-    def _upload(self, data: bytes) -> None:
-        if self._buffer is None or self._buffer.size < len(data):
-            if self._buffer is not None:
-                self._buffer.release()
-            self._buffer = self.ctx.buffer(reserve=max(len(data), 64))
-        self._buffer.write(data)
-
     # ------------------------------------------------------------------ GPU side
     def _ensure_grid(self, tw: int, th: int, layers: int) -> None:
         """Grid texture (tw, th, allocated layers); layers grow by doubling, only when needed."""
@@ -134,7 +129,7 @@ class LightCullingPass(Pass):
         self._grid = self.ctx.texture_array((tw, th, alloc), 1, dtype="u4")
         self._grid.filter = (self.renderer.moderngl.NEAREST, self.renderer.moderngl.NEAREST)
         self._fbo = self.ctx.empty_framebuffer((tw, th))
-        self._everywhere = self.ctx.buffer(reserve=alloc * 4)
+        self._everywhere = UploadBuffer(self.ctx)
         self._grid_key, self.layers_allocated = (tw, th), alloc
 
     def _grid_matrix(self, frame, tw: int, th: int) -> np.ndarray:
@@ -155,10 +150,10 @@ class LightCullingPass(Pass):
         masks = np.zeros(self.layers_allocated, dtype=np.uint32)
         for i in range(n_raster, count):  # lights that reach every tile
             masks[i // 32] |= np.uint32(1 << (i % 32))
-        self._everywhere.write(masks.tobytes())
+        self._everywhere.upload(masks.tobytes(), min_size=masks.nbytes)
         clear = self.renderer.shaders.compute("light_grid/clear.comp.j2")
         self._grid.bind_to_image(0, read=False, write=True)
-        self._everywhere.bind_to_storage_buffer(0)
+        self._everywhere.bind(0)
         clear["gua_grid_dims"] = (tw, th, self.layers_allocated)
         clear.run(-(-tw // 8), -(-th // 8), self.layers_allocated)
         self.ctx.memory_barrier()
@@ -171,7 +166,7 @@ class LightCullingPass(Pass):
             self._fbo.use()
             self.ctx.disable(mgl.DEPTH_TEST | mgl.BLEND | mgl.CULL_FACE)
             self._grid.bind_to_image(0, read=True, write=True)
-            self._buffer.bind_to_storage_buffer(3)
+            self._lights.bind(3)
             vao = self._vaos.get(prog.glo)
             if vao is None:
                 vao = self._vaos[prog.glo] = self.ctx.vertex_array(prog, [])
@@ -211,14 +206,14 @@ class LightCullingPass(Pass):
             cam = frame.scene.camera
             idx, n_raster = self._order(table, idx, frame.view, cam.near, cam.far)
         data = pack_lights(table[idx]).tobytes()
-        self._upload(data)
+        self._lights.upload(data)
         self.packed_lights = lights = [frame.scene.lights[i] for i in idx]
         grid = None
         if self.mode != "off":
             self._build_grid(frame, len(lights), n_raster)
             grid = self._grid
         frame.resources["light_grid"] = {
-            "buffer": self._buffer,
+            "buffer": self._lights.buffer,
             "count": len(lights),
             "grid": grid,
             "layers": -(-len(lights) // 32),
@@ -309,9 +304,7 @@ class LightCullingPass(Pass):
         for vao in self._vaos.values():
             vao.release()
         self._vaos = {}
-        if self._buffer is not None:
-            self._buffer.release()
-            self._buffer = None
+        self._lights.release()
 
 
 __all__ = ["LightCullingPass", "MODES", "PROXY_EXTENT", "LIGHT_GRID_UNIT"]

@@ -12,7 +12,8 @@ class ToneMappingPass(FullscreenPass):
     name = "tone_mapping"
     reads = ("hdr",)
     writes = ("ldr",)
-    template = "post/tone_mapping.frag.j2"
+    template = "post/tone_mapping.comp.j2"
+    compute = True
     SETTINGS = {
         "operator": Setting((str,), "aces", "tone curve", choices=("aces", "reinhard", "clamp")),
         "exposure": Setting(NUMBER, 1.0, "linear scale before the curve", check=positive),

@@ -103,9 +103,10 @@ class FrameState:
 class FrameResult:
     """A finished frame: display image (row 0 at the top), optional linear color, statistics."""
 
-    image: np.ndarray
+    image: np.ndarray | None
     stats: dict
     linear: np.ndarray | None = None
+    texture: object | None = None  # the output on the GPU (valid until the renderer's next frame)
 
     def save(self, path: str | Path) -> Path:
         """Write the image (format from the suffix, e.g. .png) through a temporary file and a rename."""

@@ -1,0 +1,322 @@
+"""The guacamole paper's Table 1 on real scenes, plus the stacks and frames that expose slow regimes.
+
+Usage: python benchmarks/paper_table.py OUTDIR [--scenes DIR] [--size 1024] [--frames 8] [--warmup-s 1.5]
+                                        [--only SCENE ...] [--methods ID ...] [--skip-stacks]
+
+For every scene of the paper's Table 1 found in --scenes (dragons.yaml, sponza_dabrovic_v1/v2.yaml,
+hairball_v1/v2.yaml: see ../shared/scenes/README.md; the hairball is written by make_hairball.py)
+and every method (all one-pass A-buffer methods, the best peeling method, unsorted blending):
+per-stage GPU times (timer queries, median of --frames after --warmup-s seconds of untimed frames),
+the frame's wall time in a loop without read-back, fragments stored and culled, memory, the SM
+clock while it ran, and the ratio to the paper's PreSortLF* figure (GTX 980). Then:
+  * stacks of full-screen quads (1, 2, 4, 8, 64 layers, unlit, alpha 0.5) at --size: geometry
+    time per stored fragment, the regime that must never come back unseen;
+  * the empty frame (no nodes, no lights);
+  * the read-back experiment: the 1-layer stack with GUACA_DIRECT_CPU_ACCESS=1 (the CPU writes and
+    reads the shaders' counter buffer, as before) against the default staged access.
+Writes OUTDIR/paper_table.json, paper_table.md and paper_table.png; prints progress while it runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
+
+from gpu_clock import ClockSampler  # noqa: E402
+
+from guaca_py import GuacaError, Renderer  # noqa: E402
+from guaca_py.context import create_context  # noqa: E402
+from guaca_py.scene.graph import Camera, MaterialInstance, MeshData, Node, Scene, Transform  # noqa: E402
+from guaca_py.scene.loader import load_scene  # noqa: E402
+
+# scene file -> (paper's PreSortLF* total on a GTX 980 in ms, paper scene name)
+PAPER = {
+    "dragons": (3.0, "Dragons"),
+    "sponza_dabrovic_v1": (6.6, "Atrium Sponza v1 (Crytek)"),
+    "sponza_dabrovic_v2": (6.5, "Atrium Sponza v2 (Crytek)"),
+    "hairball_v1": (39.6, "Hairball v1"),
+    "hairball_v2": (58.0, "Hairball v2"),
+}
+METHODS = [
+    "presort_lf_et",
+    "presort_lf",
+    "presort_lf_merge2_et",
+    "presort_cs_et",
+    "presort_cs",
+    "post_sort",
+    "post_merge16",
+    "multilayer_depth_peeling",
+    "unsorted_blend",
+]
+STACK_LAYERS = (1, 2, 4, 8, 64)
+STACK_METHODS = ("presort_lf_et", "post_sort")
+
+
+def progress(text: str) -> None:
+    """One progress line with the time since start."""
+    print(f"[{time.perf_counter() - _T0:7.1f} s] {text}", flush=True)
+
+
+_T0 = time.perf_counter()
+
+
+def time_frames(renderer, scene, size: int, warmup_s: float, frames: int) -> dict:
+    """Untimed frames for `warmup_s` seconds (the GPU clock ramps up), then per-pass medians and loop wall time."""
+    t_end = time.perf_counter() + warmup_s
+    n_warm = 0
+    while n_warm < 2 or time.perf_counter() < t_end:
+        t0 = time.perf_counter()
+        renderer.render(scene, size, size, read_back=False)
+        renderer.ctx.finish()
+        n_warm += 1
+        if time.perf_counter() - t0 > 0.5:  # a slow configuration: fewer frames keep the run bounded
+            frames = min(frames, 3)
+            break
+    samples: dict[str, list[float]] = {}
+    totals = []
+    with ClockSampler(period_ms=50) as clock:
+        for _ in range(frames):
+            res = renderer.render(scene, size, size)  # this frame's own timers (waits for it)
+            for name, p in res.stats["passes"].items():
+                samples.setdefault(name, []).append(p["ms"])
+            totals.append(sum(p["ms"] for p in res.stats["passes"].values()))
+        # frame loop as an application runs it: no read-back, timers of the previous frame
+        renderer.ctx.finish()
+        t0 = time.perf_counter()
+        for _ in range(frames):
+            renderer.render(scene, size, size, read_back=False)
+        renderer.ctx.finish()
+        loop_ms = (time.perf_counter() - t0) * 1e3 / frames
+    last = renderer.render(scene, size, size)
+    return {
+        "passes_ms": {k: statistics.median(v) for k, v in samples.items()},
+        "total_ms": statistics.median(totals),
+        "loop_wall_ms": loop_ms,
+        "warmup_frames": n_warm,
+        "frames": frames,
+        "fragments": last.stats.get("fragments", {}),
+        "memory": last.stats.get("memory", {}),
+        "regrown": last.stats.get("regrown", 0),
+        "warnings": last.stats.get("warnings", []),
+        "timer": last.stats.get("timer"),
+        "clock": clock.summary(),
+    }
+
+
+def quad_stack(layers: int) -> Scene:
+    """`layers` full-screen unlit quads at alpha 0.5, drawn back to front."""
+    p = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], np.float32) * 4.0
+    mesh = MeshData(
+        p,
+        np.tile(np.float32([0, 0, 1]), (4, 1)),
+        np.float32([[0, 0], [1, 0], [1, 1], [0, 1]]),
+        np.uint32([[0, 1, 2], [0, 2, 3]]),
+        "stack_quad",
+    )
+    nodes = []
+    for i in range(layers):
+        z = -1.0 - 2.0 * (layers - 1 - i) / max(1, layers)  # back to front
+        color = [(i * 37 % 11) / 10, (i * 17 % 7) / 6, (i * 5 % 3) / 2]
+        nodes.append(
+            Node(
+                f"layer{i}",
+                mesh=mesh,
+                transform=Transform(translation=[0, 0, z]),
+                material=MaterialInstance("unlit", {"color": color, "alpha": 0.5}),
+            )
+        )
+    cam = Camera(position=[0, 0, 1], target=[0, 0, 0], up=[0, 1, 0], fov_y=90, near=0.1, far=10)
+    return Scene(nodes=nodes, camera=cam, lights=[], background=[0, 0, 0])
+
+
+def scene_rows(args, ctx, out: dict) -> None:
+    """Every (scene, method) of Table 1."""
+    for stem, (paper_ms, paper_name) in PAPER.items():
+        path = Path(args.scenes) / f"{stem}.yaml"
+        if args.only and stem not in args.only:
+            continue
+        if not path.is_file():
+            progress(f"{stem}: {path} missing, skipped")
+            continue
+        t0 = time.perf_counter()
+        scene = load_scene(path)
+        progress(f"{stem}: loaded in {time.perf_counter() - t0:.1f} s")
+        rows = out.setdefault("scenes", {}).setdefault(stem, {"paper_ms": paper_ms, "paper_scene": paper_name})
+        for mid in args.methods:
+            try:
+                r = Renderer("default", ctx=ctx, method=mid)
+            except GuacaError as exc:
+                rows[mid] = {"failed": str(exc)}
+                progress(f"  {mid}: {exc}")
+                continue
+            try:
+                row = time_frames(r, scene, args.size, args.warmup_s, args.frames)
+            except GuacaError as exc:
+                row = {"failed": str(exc)}
+            finally:
+                r.release()
+            if "total_ms" in row:
+                row["ratio_to_paper"] = row["total_ms"] / paper_ms
+                progress(
+                    f"  {mid:<26} total {row['total_ms']:9.3f} ms  loop wall {row['loop_wall_ms']:9.3f} ms  "
+                    f"stored {row['fragments'].get('stored', 0):>10}  "
+                    f"clock {row['clock']['sm_clock_mhz_median'] if row['clock'] else '?'} MHz"
+                )
+            rows[mid] = row
+
+
+def stack_rows(args, ctx, out: dict) -> None:
+    """Full-screen stacks: geometry ns per stored fragment."""
+    for mid in STACK_METHODS:
+        r = Renderer("default", ctx=ctx, method=mid)
+        for layers in STACK_LAYERS:
+            row = time_frames(r, quad_stack(layers), args.size, min(args.warmup_s, 0.5), args.frames)
+            stored = max(1, row["fragments"].get("stored", 0))
+            row["geometry_ns_per_fragment"] = row["passes_ms"]["geometry"] * 1e6 / stored
+            out.setdefault("stacks", {}).setdefault(mid, {})[str(layers)] = row
+            progress(
+                f"stack {mid:<14} {layers:>3} layers: geometry {row['passes_ms']['geometry']:8.3f} ms "
+                f"= {row['geometry_ns_per_fragment']:6.2f} ns/fragment, total {row['total_ms']:.3f} ms"
+            )
+        r.release()
+
+
+def empty_and_experiment(args, ctx, out: dict) -> None:
+    """The empty frame, and the CPU-access experiment on the 1-layer stack."""
+    r = Renderer("default", ctx=ctx)
+    empty = Scene(nodes=[], camera=Camera(position=[0, 0, 1], target=[0, 0, 0]), lights=[], background=[0, 0, 0])
+    out["empty"] = time_frames(r, empty, args.size, 0.5, args.frames)
+    r.release()
+    progress(f"empty frame: {out['empty']['total_ms']:.4f} ms GPU, loop wall {out['empty']['loop_wall_ms']:.3f} ms")
+    for label, value in (("staged", "0"), ("direct", "1")):
+        os.environ["GUACA_DIRECT_CPU_ACCESS"] = value
+        r = Renderer("default", ctx=ctx, method="presort_lf_et")  # fresh buffers for each access pattern
+        row = time_frames(r, quad_stack(1), args.size, 0.5, args.frames)
+        r.release()
+        out.setdefault("cpu_access_experiment", {})[label] = row
+        progress(f"1-layer stack, {label} CPU access: geometry {row['passes_ms']['geometry']:.3f} ms")
+    os.environ.pop("GUACA_DIRECT_CPU_ACCESS", None)
+
+
+def write_markdown(out: dict, path: Path) -> None:
+    """paper_table.md: Table 1, stacks, empty frame and the experiment."""
+    lines = [f"# Table 1 at {out['size']}² on {out['device']}", "", f"Command: `{out['command']}`", ""]
+    lines += [
+        "| scene | method | geometry | light culling | composite | post | total GPU ms | loop wall ms | "
+        "stored | ET culled | pool MiB (used) | SM MHz | × paper |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for stem, rows in out.get("scenes", {}).items():
+        for mid, row in rows.items():
+            if not isinstance(row, dict):
+                continue
+            if "failed" in row:
+                lines.append(f"| {stem} | {mid} | failed: {row['failed']} |")
+                continue
+            p = row["passes_ms"]
+            post = sum(v for k, v in p.items() if k not in ("geometry", "light_culling", "composite"))
+            fr, mem = row["fragments"], row["memory"]
+            pool = mem.get("abuffer_pool", mem.get("multilayer_pool", 0)) / 2**20
+            used = mem.get("abuffer_pool_used", 0) / 2**20
+            clock = row["clock"]["sm_clock_mhz_median"] if row["clock"] else "?"
+            lines.append(
+                f"| {stem} | {mid} | {p.get('geometry', 0):.3f} | {p.get('light_culling', 0):.3f} | "
+                f"{p.get('composite', 0):.3f} | {post:.3f} | **{row['total_ms']:.3f}** | {row['loop_wall_ms']:.3f} | "
+                f"{fr.get('stored', 0)} | {fr.get('early_termination_culled', 0)} | {pool:.1f} ({used:.1f}) | "
+                f"{clock} | {row['ratio_to_paper']:.2f} |"
+            )
+    if out.get("stacks"):
+        lines += ["", "## Full-screen stacks (back to front)", ""]
+        lines += ["| method | layers | geometry ms | ns / stored fragment | total ms |", "|---|---|---|---|---|"]
+        for mid, rows in out["stacks"].items():
+            for layers, row in rows.items():
+                lines.append(
+                    f"| {mid} | {layers} | {row['passes_ms']['geometry']:.3f} | "
+                    f"{row['geometry_ns_per_fragment']:.3f} | {row['total_ms']:.3f} |"
+                )
+    if out.get("empty"):
+        e = out["empty"]
+        lines += [
+            "",
+            f"Empty frame: {e['total_ms']:.4f} ms GPU ({e['passes_ms']}), loop wall {e['loop_wall_ms']:.3f} ms",
+        ]
+    if out.get("cpu_access_experiment"):
+        lines += ["", "## CPU access experiment (1-layer stack, presort_lf_et)", ""]
+        for label, row in out["cpu_access_experiment"].items():
+            lines.append(f"- {label}: geometry {row['passes_ms']['geometry']:.3f} ms, total {row['total_ms']:.3f} ms")
+    path.write_text("\n".join(lines) + "\n")
+
+
+def plot(out: dict, path: Path) -> None:
+    """One bar group per scene: total GPU ms per method (log scale), the paper's figure as a line."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scenes = [
+        s
+        for s in out.get("scenes", {})
+        if any("total_ms" in r for r in out["scenes"][s].values() if isinstance(r, dict))
+    ]
+    if not scenes:
+        return
+    fig, axes = plt.subplots(1, len(scenes), figsize=(4.2 * len(scenes), 4.5), squeeze=False)
+    for ax, stem in zip(axes[0], scenes):
+        rows = {m: r for m, r in out["scenes"][stem].items() if isinstance(r, dict) and "total_ms" in r}
+        names = list(rows)
+        ax.barh(names, [rows[m]["total_ms"] for m in names], color="#4c72b0")
+        paper = out["scenes"][stem]["paper_ms"]
+        ax.axvline(paper, color="#c44e52", ls="--", label=f"paper PreSortLF* {paper} ms (GTX 980)")
+        ax.axvline(paper / 10, color="#55a868", ls=":", label="target: paper / 10")
+        ax.set_xscale("log")
+        ax.set_title(stem)
+        ax.set_xlabel("GPU ms per frame (1024²)")
+        ax.invert_yaxis()
+        ax.legend(fontsize=7, loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("outdir")
+    ap.add_argument("--scenes", default=str(ROOT / ".scenes"))
+    ap.add_argument("--size", type=int, default=1024)
+    ap.add_argument("--frames", type=int, default=8)
+    ap.add_argument("--warmup-s", type=float, default=1.5)
+    ap.add_argument("--only", nargs="*", default=None)
+    ap.add_argument("--methods", nargs="*", default=METHODS)
+    ap.add_argument("--skip-stacks", action="store_true")
+    args = ap.parse_args()
+    outdir = Path(args.outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    ctx, caps = create_context()
+    out = {
+        "device": caps.renderer,
+        "size": args.size,
+        "command": "python3 benchmarks/paper_table.py " + " ".join(sys.argv[1:]),
+        "capabilities": caps.as_dict(),
+    }
+    if not args.skip_stacks:
+        empty_and_experiment(args, ctx, out)
+        stack_rows(args, ctx, out)
+    scene_rows(args, ctx, out)
+    (outdir / "paper_table.json").write_text(json.dumps(out, indent=1, default=str))
+    write_markdown(out, outdir / "paper_table.md")
+    plot(out, outdir / "paper_table.png")
+    progress(f"wrote {outdir}/paper_table.md, .json, .png")
+
+
+if __name__ == "__main__":
+    main()
