@@ -469,3 +469,28 @@ def test_exact_methods_agree_above_llvmpipe_tiles(renderer_factory, quads_refere
     scene, ref = quads_reference
     img = renderer_factory("exact", method=method).render(scene, 400, 400).image.astype(int)
     assert np.abs(img - ref).max() <= 1
+
+
+def test_driver_refusal_exits_2(tmp_path, capsys, monkeypatch):
+    """A resource the driver refuses (incomplete framebuffer, out of memory) is reported, not a traceback."""
+    import moderngl
+
+    from guaca_py.renderer import Renderer
+
+    def refuse(*a, **k):
+        raise moderngl.Error("the framebuffer is not complete")
+
+    monkeypatch.setattr(Renderer, "render", refuse)
+    s = write(tmp_path / "s.yaml", scene_text(layer(0)))
+    rc, _, err = run([s, "--out", tmp_path / "o.png"], capsys)
+    expect_error(rc, err, "the OpenGL device refused the request", "lower the resolution")
+
+
+def test_info_reports_the_storage_rule(capsys, monkeypatch):
+    monkeypatch.setenv("GUACA_MAX_BUFFER_MB", "64")
+    assert main(["info", "--json"]) == 0
+    lim = json.loads(capsys.readouterr().out)["limits"]
+    assert lim["max_buffer_bytes"] == 64 * 2**20 and "GUACA_MAX_BUFFER_MB" in lim["binding"]
+    monkeypatch.setenv("GUACA_MAX_BUFFER_MB", "lots")
+    assert main(["info"]) == 2
+    assert "GUACA_MAX_BUFFER_MB='lots' is not a positive number" in capsys.readouterr().err
