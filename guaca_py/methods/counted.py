@@ -80,7 +80,7 @@ class _CountedStorage(TransparencyMethod):
             limit = min(limit, int(self.settings["budget_mb"] * 1024 * 1024))
         return max(1, min(limit // slot_bytes, 2**32 - 1))
 
-    def _cap_reason(self, ctx, slot_bytes: int) -> str:
+    def _cap_reason(self) -> str:
         """Which limit capped the storage, and what to do about it."""
         device = self.caps.limits.max_buffer_bytes if self.caps.limits else 2**31 - 1
         if self.settings["budget_mb"] != "auto" and self.settings["budget_mb"] * 1024 * 1024 < device:
@@ -239,7 +239,7 @@ class DynamicFragmentBuffer(_CountedStorage):
             self._warn(
                 frame,
                 f"{self.id}: frame needs {total} fragments, storage capped at {capacity} "
-                f"by {self._cap_reason(frame.ctx, PAYLOAD_BYTES)}; {c['overflow']} dropped",
+                f"by {self._cap_reason()}; {c['overflow']} dropped",
             )
         elif c["overflow"] or c["stored"] != total:
             self._warn(
@@ -357,13 +357,13 @@ class PagedLinkedLists(_CountedStorage):
         """Most pages: storage cap, and page indices must fit the head word next to the fill."""
         return min(self._max_slots(ctx, self.page * PAYLOAD_BYTES), 2 ** (32 - self.fill_bits) - 1)
 
-    def _paged_hint(self, ctx, limit: int, auto: bool) -> str:
+    def _paged_hint(self, limit: int, auto: bool) -> str:
         """What bounded the page pool, and what to do about it."""
         if self.capacity < limit:
             return "raise transparency.budget_mb or use 'auto'" if not auto else "raise transparency.max_regrow"
         if limit == 2 ** (32 - self.fill_bits) - 1 and self.page > 1:
             return f"page indices are {32 - self.fill_bits} bits beside the fill count: try a smaller page_size"
-        return f"capped by {self._cap_reason(ctx, self.page * PAYLOAD_BYTES)}"
+        return f"capped by {self._cap_reason()}"
 
     def prepare(self, frame) -> None:
         """Size the page pool (requested size, previous size or a first guess), clear heads and counters."""
@@ -428,7 +428,7 @@ class PagedLinkedLists(_CountedStorage):
             )
             return True
         if c["overflow"]:
-            hint = self._paged_hint(frame.ctx, limit, auto)
+            hint = self._paged_hint(limit, auto)
             self._warn(
                 frame,
                 f"paged_ll overflow: {c['overflow']} fragments dropped (pool {self.capacity - 1} "
