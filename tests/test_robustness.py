@@ -139,13 +139,20 @@ def test_pass_listed_twice(tmp_path, capsys):
         (["--set", "max_regrow=-5"], ["transparency.max_regrow", "must be >= 0"]),
         (["--set", "budget_mb=1e9"], ["YAML reads '1e9' as text", "1.0e+09"]),
         (["--set", "budget_mb=["], ["--set", "cannot read '['"]),
-        (["--method", "multilayer_depth_peeling", "--set", "max_steps=0"], ["must be > 0"]),
     ],
 )
 def test_bad_option_exits_2_naming_it(tmp_path, capsys, args, needles):
     s = write(tmp_path / "s.yaml", scene_text(layer(0)))
     rc, _, err = run([s, "--out", tmp_path / "o.png", *args], capsys)
     expect_error(rc, err, *needles)
+
+
+def test_multilayer_max_steps_0_refused(tmp_path):
+    """It used to be accepted and peel for ever (no insertion can succeed); a child process bounds a regression."""
+    s = write(tmp_path / "s.yaml", scene_text(layer(0)))
+    args = [s, "--method", "multilayer_depth_peeling", "--set", "max_steps=0", "--out", tmp_path / "o.png"]
+    r = run_isolated(args, timeout=60)
+    expect_error(r.returncode, r.stderr, "transparency.max_steps", "must be > 0")
 
 
 @pytest.mark.parametrize(

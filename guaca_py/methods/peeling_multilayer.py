@@ -159,19 +159,22 @@ class MultiLayerDepthPeeling(PeelingMethod):
             if left == 0:
                 break
             stalled = stalled + 1 if c["peeled"] == 0 else 0
-            if c["overflow"]:
+            if c["overflow"] and can_grow:
                 # Grow so that the next pass cannot overflow: it allocates at most one node per fragment it sees.
                 want = max(requested, c["in_range"]) + 2
-                if can_grow:
-                    self._alloc_pool(frame, min(max_nodes, int(want * 1.1)))
-                    s["pool_grown"] += 1
-                elif stalled >= 3:
-                    s["truncated"] = left
-                    self.warn(
-                        f"{self.id}: the node pool ({self.capacity - 1} nodes) is too small to make progress; "
-                        f"{left} fragments not peeled (raise transparency.pool_mb or use 'auto')"
-                    )
-                    break
+                self._alloc_pool(frame, min(max_nodes, int(want * 1.1)))
+                s["pool_grown"] += 1
+            elif stalled >= 3:
+                # three passes without a peeled fragment: stop (counted) rather than loop for ever
+                s["truncated"] = left
+                why = (
+                    f"the node pool ({self.capacity - 1} nodes) is too small to make progress "
+                    "(raise transparency.pool_mb or use 'auto')"
+                    if c["overflow"]
+                    else f"every insertion hit max_steps ({self.settings['max_steps']}; raise it)"
+                )
+                self.warn(f"{self.id}: {why}; {left} fragments not peeled")
+                break
         if s["pool_overflow"] and self.settings["pool_mb"] != "auto":
             self.warn(
                 f"{self.id}: node pool overflowed ({s['pool_overflow']} nodes lacking, "
