@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Everything measured on the GPU machine in one go; results under $1 (default $OUT).
 #   source .gl/gpu-env.sh && bash benchmarks/gpu_run.sh "$OUT"
-# Parts can be skipped: SKIP="tests lights methods" bash benchmarks/gpu_run.sh DIR
+# Parts can be skipped: SKIP="tests table sweep lights methods" bash benchmarks/gpu_run.sh DIR
+# The real scenes are read from .scenes/ (a git-ignored copy of ../shared/scenes; the hairball is
+# generated there first when missing).
 set -uo pipefail
 out=${1:-$OUT}
 mkdir -p "$out/logs"
@@ -11,6 +13,15 @@ if [[ $skip != *" tests "* ]]; then
   # the exact-method tests on the NVIDIA variants (64-bit insertion, interlock, conservative raster)
   timeout 240 python3 -m pytest -q -x -p no:cacheprovider tests > "$out/logs/pytest_gpu.txt" 2>&1
   tail -3 "$out/logs/pytest_gpu.txt"
+fi
+if [[ -f .scenes/make_hairball.py && ! -f .scenes/hairball.ply ]]; then
+  (cd .scenes && python3 make_hairball.py . > /dev/null)
+fi
+if [[ $skip != *" table "* && -d .scenes ]]; then
+  timeout 300 python3 benchmarks/paper_table.py "$out/paper_table" 2>&1 | tee "$out/logs/paper_table.txt"
+fi
+if [[ $skip != *" sweep "* ]]; then
+  timeout 150 python3 benchmarks/raster_sweep.py "$out/raster_sweep" 2>&1 | tee "$out/logs/raster_sweep.txt"
 fi
 # demo scene, 1024x1024: one cold frame, then median of 10 after 3 warm-up
 python3 -m guaca_py render --width 1024 --height 1024 --out "$out/logs/demo_cold.png" \

@@ -58,6 +58,11 @@ def _cmd_render(args) -> int:
     print(f"method {s['method']} ({s['insertion_path']} insertion), timer: {s['timer']}{how}")
     for name, p in s["passes"].items():
         print(f"  {name:<14} {p['ms']:10.3f} ms")
+    ra = s.get("raster")
+    if ra:
+        print(
+            f"transparent raster ({ra['setting']}): {ra['compute_draws']} draws compute, {ra['hardware_draws']} hardware"
+        )
     fr = s.get("fragments", {})
     print("fragments: " + ", ".join(f"{k} {v}" for k, v in fr.items()))
     mem = s.get("memory", {})
@@ -75,11 +80,12 @@ def _cmd_render(args) -> int:
 
 def _cmd_info(args) -> int:
     from .context import create_context
+    from .raster.choice import device_rule
 
     _, caps = create_context()
     d = caps.as_dict()
     if args.json:
-        print(json.dumps(dict(d, insertion_path=caps.insertion_path), indent=2))
+        print(json.dumps(dict(d, insertion_path=caps.insertion_path, raster_auto=device_rule(caps)), indent=2))
         return 0
     print(f"device:    {caps.renderer}")
     print(f"vendor:    {caps.vendor}")
@@ -96,6 +102,7 @@ def _cmd_info(args) -> int:
         f"A-buffer insertion path: {caps.insertion_path} "
         f"({'64-bit atomicMax on (depth, pointer)' if caps.insertion_path == '64bit' else '32-bit CAS on immutable nodes'})"
     )
+    print(f"transparent raster (raster: auto): {device_rule(caps)}")
     return 0
 
 

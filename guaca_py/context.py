@@ -30,6 +30,11 @@ class Capabilities:
     limits: DeviceLimits | None = None  # buffer and render-target sizes (guaca_py/limits.py)
     shader_ballot: bool = False  # ARB_shader_ballot + ARB_gpu_shader_int64: per-subgroup aggregation of atomics
 
+    def __post_init__(self):
+        # Capabilities(**caps.as_dict()) round-trips: as_dict turns the limits into a plain dict
+        if isinstance(self.limits, dict):
+            object.__setattr__(self, "limits", DeviceLimits(**self.limits))
+
     def as_dict(self) -> dict:
         """Plain dict for JSON output."""
         return asdict(self)

@@ -31,6 +31,9 @@ class CounterBlock:
         self.buffer = ctx.buffer(reserve=size)  # the shaders' copy: never mapped, written or read by the CPU
         self._initial = ctx.buffer(reserve=size)  # reset values, copied over `buffer` on the GPU
         self._staging = ctx.buffer(reserve=size)  # read-back copy
+        self._late = ctx.buffer(reserve=size)  # copy read one frame later (frame loops without read-back)
+        self._late_tag: object = None
+        self._late_valid = False
         self._initial_values: tuple[int, ...] | None = None
 
     def reset(self, **values: int) -> None:
@@ -54,13 +57,25 @@ class CounterBlock:
             src = self._staging
         return dict(zip(self.names, np.frombuffer(src.read(), dtype=np.uint32).tolist()))
 
+    def stage(self, tag: object = None) -> None:
+        """Copy the counters aside on the GPU, to be read by staged() a frame later without waiting now."""
+        self.ctx.copy_buffer(self._late, self.buffer)
+        self._late_tag, self._late_valid = tag, True
+
+    def staged(self) -> tuple[dict[str, int], object] | None:
+        """The counters of the last stage() call and its tag (by then finished on the GPU); None if none."""
+        if not self._late_valid:
+            return None
+        self._late_valid = False
+        return dict(zip(self.names, np.frombuffer(self._late.read(), dtype=np.uint32).tolist())), self._late_tag
+
     def bind(self, binding: int) -> None:
         """Bind as the shader storage block at `binding`."""
         self.buffer.bind_to_storage_buffer(binding)
 
     def release(self) -> None:
-        """Free the three buffers."""
-        for b in (self.buffer, self._initial, self._staging):
+        """Free the buffers."""
+        for b in (self.buffer, self._initial, self._staging, self._late):
             b.release()
 
 

@@ -19,18 +19,22 @@ class MeshCache:
         self._buffers: dict[int, tuple] = {}
         self._vaos: dict[tuple[int, int], object] = {}
 
+    def buffers(self, mesh) -> tuple:
+        """(vertex buffer of interleaved position, normal, texcoord float32s; uint32 index buffer)."""
+        if id(mesh) not in self._buffers:
+            inter = np.hstack([mesh.positions, mesh.normals, mesh.texcoords]).astype(np.float32)
+            self._buffers[id(mesh)] = (
+                mesh,
+                self.ctx.buffer(inter.tobytes()),
+                self.ctx.buffer(np.ascontiguousarray(mesh.indices, dtype=np.uint32).tobytes()),
+            )
+        return self._buffers[id(mesh)][1:]
+
     def vao(self, mesh, prog):
         """VAO drawing `mesh` with `prog` (attributes the program does not use are skipped)."""
         key = (id(mesh), prog.glo)
         if key not in self._vaos:
-            if id(mesh) not in self._buffers:
-                inter = np.hstack([mesh.positions, mesh.normals, mesh.texcoords]).astype(np.float32)
-                self._buffers[id(mesh)] = (
-                    mesh,
-                    self.ctx.buffer(inter.tobytes()),
-                    self.ctx.buffer(np.ascontiguousarray(mesh.indices, dtype=np.uint32).tobytes()),
-                )
-            _, vbo, ibo = self._buffers[id(mesh)]
+            vbo, ibo = self.buffers(mesh)
             self._vaos[key] = self.ctx.vertex_array(
                 prog,
                 [(vbo, "3f 3f 2f", "in_position", "in_normal", "in_texcoord")],

@@ -19,6 +19,7 @@ from .pipeline.config import PipelineConfig, load_pipeline
 from .pipeline.drawlist import build_draw_list
 from .pipeline.frame import FrameResult, FrameState, mat_bytes
 from .pipeline.settings import resolve_settings
+from .raster import RasterRouter
 from .scene.graph import Scene
 from .shaders import ShaderLibrary, SourceMap
 
@@ -62,6 +63,7 @@ class Renderer:
         self._queries: dict[tuple[str, int], object] = {}
         self._frame_index = 0
         self._previous_timers: dict | None = None
+        self.raster = RasterRouter(self)  # hardware or compute rasterization of transparent draws
         self.set_method(method or self.config.transparency["method"], method_overrides)
         self.passes = [PASS_TYPES[p.name](self, p.settings) for p in self.config.passes]
         available = set(_FIRST_RESOURCES)
@@ -84,9 +86,15 @@ class Renderer:
         reason = cls.unsupported_reason(self.caps)
         if reason:
             raise UnsupportedMethodError(f"method '{mid}' cannot run on {self.caps.renderer}: {reason}")
+        method = cls(method_settings(mid, self.config.transparency, overrides, self.config.source), self.caps)
+        refusal = method.compute_raster_refusal() if method.settings["raster"] == "compute" else None
+        if refusal:
+            raise UnsupportedMethodError(
+                f"method '{mid}' cannot take transparency.raster: compute: {refusal}; use raster: hardware or auto"
+            )
         if getattr(self, "method", None) is not None:
             self.method.release()
-        self.method = cls(method_settings(mid, self.config.transparency, overrides, self.config.source), self.caps)
+        self.method = method
 
     def pass_named(self, name: str):
         """The pass instance called `name` (compulsory passes always exist)."""
@@ -216,6 +224,7 @@ class Renderer:
         cam = scene.camera
         draws = build_draw_list(scene, self.materials)
         frame = FrameState(self, scene, w, h, draws, cam.view_matrix(), cam.projection_matrix(w / h))
+        frame.late_counters = not read_back
         frame.stats.update(
             {
                 "method": self.method.id,
@@ -276,6 +285,7 @@ class Renderer:
         for p in self.passes:
             p.release()
         self.method.release()
+        self.raster.release()
         self.meshes.release()
         self.textures.release()
         self._queries.clear()  # moderngl has no release for queries: reusing them bounds them at two per pass

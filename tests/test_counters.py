@@ -91,3 +91,24 @@ def test_stored_equals_the_nodes_in_the_lists(renderers, method, overrides):
         assert fr["overflow"] == 0
     if overrides.get("threshold") == 0.9 and "budget_mb" not in overrides:
         assert fr["early_termination_culled"] > 0
+
+
+def test_frame_loop_reads_counters_a_frame_late(renderer_factory):
+    """Without read-back the stats are the previous frame's (no wait); an overflow grows the pool for the next."""
+    small = layered_quads_scene(n_layers=4, order="shuffled", seed=6, with_opaque=False)
+    deep = layered_quads_scene(n_layers=16, order="shuffled", seed=6, with_opaque=False)
+    r = renderer_factory("exact", method="presort_lf")
+    first = r.render(small, SIZE, SIZE, read_back=False)  # nothing staged yet: read now
+    assert "fragments_of" not in first.stats and first.image is None and first.texture is not None
+    want = r.render(small, SIZE, SIZE).stats["fragments"]["stored"]
+    r.render(small, SIZE, SIZE, read_back=False)
+    late = r.render(deep, SIZE, SIZE, read_back=False)
+    assert late.stats["fragments_of"] == "previous frame"
+    assert late.stats["fragments"]["stored"] == want  # the small scene's count, not the deep one's
+    grown = r.render(deep, SIZE, SIZE, read_back=False)  # reports the deep frame's overflow, grows the pool
+    assert grown.stats["fragments"]["overflow"] > 0 and any("previous frame" in w for w in grown.stats["warnings"])
+    r.render(deep, SIZE, SIZE, read_back=False)
+    settled = r.render(deep, SIZE, SIZE, read_back=False)
+    assert settled.stats["fragments"]["overflow"] == 0
+    exact = r.render(deep, SIZE, SIZE)
+    assert exact.stats["fragments"]["stored"] == settled.stats["fragments"]["stored"]

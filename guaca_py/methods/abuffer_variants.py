@@ -93,9 +93,18 @@ class PreSortCS(ABufferVariant):
 
     def __init__(self, settings, caps):
         super().__init__(settings, caps)
-        self.lock = resolve_lock(self.id, settings["lock"], caps)
+        lock = settings["lock"]
+        if settings.get("raster") == "compute" and lock == "auto":
+            lock = "spin"  # the interlock exists only in fragment shaders
+        self.lock = resolve_lock(self.id, lock, caps)
         self._use_32bit_links()  # the critical section orders the list: no 64-bit atomics needed
         self.extra_slots = 1 if self.lock == "spin" else 0  # one lock word per pixel
+
+    def compute_raster_refusal(self) -> str | None:
+        """The fragment shader interlock has no compute counterpart; the spin lock has."""
+        if self.lock == "interlock":
+            return "its critical section is the fragment shader interlock (set lock: spin)"
+        return super().compute_raster_refusal()
 
     def fragment_template(self) -> str:
         """Locked sorted insertion."""
@@ -154,7 +163,11 @@ class _PostBase(ABufferVariant):
     def after_composite(self, frame) -> None:
         """Fragments the resolve left out (fixed array full, or walk bound) into stats and warnings."""
         frame.ctx.memory_barrier()
-        c = self.read_counters(fresh=True)  # the composite counted after the geometry read
+        if frame.late_counters:  # the previous frame's counts (read in finish), this frame's set aside
+            super().after_composite(frame)
+            c = self.read_counters()
+        else:
+            c = self.read_counters(fresh=True)  # the composite counted after the geometry read
         fr = frame.stats.setdefault("fragments", {})
         fr["truncated"], fr["truncated_pixels"] = c["truncated"], c["truncated_pixels"]
         if c["truncated"]:

@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 from ..errors import UnsupportedMethodError
 from ..pipeline.settings import NUMBER, Setting, unit_interval
+from ..raster.choice import RASTER_SETTING
 
 if TYPE_CHECKING:
     from ..context import Capabilities
@@ -38,6 +39,7 @@ class TransparencyMethod:
     summary: ClassVar[str] = ""
     SETTINGS: ClassVar[dict[str, Setting]] = {}
     geometry_in_composite: ClassVar[bool] = False
+    compute_raster: ClassVar[bool] = False  # takes fragments from the compute rasterizer (docs/raster.md)
 
     def __init__(self, settings: dict, caps: Capabilities):
         self.settings = settings
@@ -46,13 +48,25 @@ class TransparencyMethod:
     @classmethod
     def settings_schema(cls) -> dict[str, Setting]:
         """Settings accepted under `transparency:` for this method (common ones included)."""
-        common = {"threshold": Setting(NUMBER, 0.98, "saturation threshold for early termination", check=unit_interval)}
+        common = {
+            "threshold": Setting(NUMBER, 0.98, "saturation threshold for early termination", check=unit_interval),
+            "raster": RASTER_SETTING,
+        }
         return {**common, **cls.SETTINGS}
 
     @classmethod
     def unsupported_reason(cls, caps: Capabilities) -> str | None:
         """Why this device cannot run the method, or None when it can."""
         return None
+
+    def compute_raster_refusal(self) -> str | None:
+        """Why this method cannot take compute-rasterized fragments, or None when it can."""
+        if self.compute_raster:
+            return None
+        return (
+            "it draws through the fragment pipeline (peeling passes, counted storage or hardware "
+            "blending); only the one-pass A-buffer methods insert compute-rasterized fragments"
+        )
 
     # --- geometry pass -------------------------------------------------------------
     def fragment_template(self) -> str:

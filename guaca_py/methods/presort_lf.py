@@ -29,6 +29,7 @@ class PreSortLF(TransparencyMethod):
     geometry_passes = "1"
     early_termination = False
     summary = "sorted lock-free insertion into per-pixel lists (no early termination)"
+    compute_raster = True  # insertion is gua_submit_at(pix, depth, tie): callable from compute kernels
     counters: tuple[str, ...] = COUNTERS  # counter words of the counter buffer, in layout order
     extra_slots = 0  # per-pixel link words after the node links (second list heads, locks)
     SETTINGS = {
@@ -137,10 +138,21 @@ class PreSortLF(TransparencyMethod):
         g["fbo"].depth_mask = True
 
     def finish(self, frame) -> bool:
-        """Read counters; with an 'auto' budget, grow the pool to the need and ask for a re-render."""
-        c = self.read_counters()
+        """Read counters; with an 'auto' budget, grow the pool to the need and ask for a re-render.
+
+        In a frame loop without read-back (frame.late_counters) the counters of the previous frame
+        are read instead, which needs no wait: an overflow they show grows the pool for the next
+        frame and is reported, but the frame is not rendered again.
+        """
+        late = self._counters.staged() if frame.late_counters else None
+        if late is not None:
+            c, capacity = late
+            self._counts = c
+            frame.stats["fragments_of"] = "previous frame"
+        else:
+            c, capacity = self.read_counters(), self.capacity
         requested = c["alloc"] - 1  # node 0 is the null node
-        used = min(requested, self.capacity - 1)
+        used = min(requested, capacity - 1)
         # allocations past the pool failed (overflow); the others were linked unless counted unlinked
         c["overflow"] = requested - used
         stored = used - c["unlinked"]
@@ -156,13 +168,16 @@ class PreSortLF(TransparencyMethod):
         self._last = {"used_nodes": used}
         if c["overflow"]:
             frame.stats.setdefault("warnings", []).append(
-                f"A-buffer overflow: {c['overflow']} fragments dropped (pool {self.capacity - 1} nodes, "
-                f"frame asked for {requested}); {self._overflow_hint()}"
+                f"A-buffer overflow{' in the previous frame' if late else ''}: {c['overflow']} fragments dropped "
+                f"(pool {capacity - 1} nodes, frame asked for {requested}); {self._overflow_hint()}"
             )
         if c["guard"]:
             frame.stats.setdefault("warnings", []).append(f"{c['guard']} insertions hit max_steps and were dropped")
         auto = self.settings["budget_mb"] == "auto"
         grow = self.capacity < self.max_capacity(self._pixels)
+        if c["overflow"] and auto and late is not None:
+            self.capacity_request(int(requested * 1.15) + 1024)  # for the next frame
+            return False
         if c["overflow"] and auto and self.regrown < self.settings["max_regrow"] and grow:
             self.regrown += 1
             self.capacity_request(int(requested * 1.15) + 1024)
@@ -174,6 +189,11 @@ class PreSortLF(TransparencyMethod):
             self.capacity_request(target)
         self.regrown = 0  # max_regrow bounds the re-renders of one frame, not of the renderer's life
         return False
+
+    def after_composite(self, frame) -> None:
+        """In a frame loop without read-back, set this frame's counters aside for the next frame's finish()."""
+        if frame.late_counters:
+            self._counters.stage(self.capacity)
 
     def read_counters(self, fresh: bool = False) -> dict[str, int]:
         """This frame's counters by name (one small GPU-side copy, then a read of the copy)."""

@@ -36,11 +36,11 @@ class Pass:
 
 
 OUTPUT_IMAGE_UNIT = 7  # image units below may be bound by methods (A-buffer saturation depth: 0)
-_IMAGE_FORMATS = {"f1": "rgba8", "f4": "rgba32f"}
+_IMAGE_FORMATS = {"f1": "rgba8", "f2": "rgba16f", "f4": "rgba32f"}
 
 
 class FullscreenPass(Pass):
-    """A pass writing every pixel of an RGBA8/RGBA32F target: a compute shader, or a full-screen triangle."""
+    """A pass writing every pixel of an RGBA8/16F/32F target: a compute shader, or a full-screen triangle."""
 
     template: ClassVar[str] = ""
     target_dtype: ClassVar[str] = "f1"

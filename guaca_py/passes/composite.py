@@ -17,12 +17,20 @@ class CompositePass(FullscreenPass):
     compute = True
     template = "composite/shade_composite.comp.j2"
 
+    def __init__(self, renderer, settings):
+        super().__init__(renderer, settings)
+        # Only tone mapping reads the HDR result when a pipeline has it, and half floats hold more than
+        # its 8-bit output resolves (half the bytes to write and read); the linear output stays float32.
+        if any(p.name == "tone_mapping" for p in renderer.config.passes):
+            self.target_dtype = "f2"
+
     def program(self, frame):
         """Composite program for this method, light lookup and transparency presence."""
         method = frame.resources.get("transparent")
         lights = frame.shading_vars()
         tvars = dict(
             has_transparency=method is not None,
+            has_opaque=frame.resources["gbuffer"]["has_opaque"],
             **lights,
             method_extensions=method.resolve_extensions() if method else "",
             method_resolve_template=method.resolve_template() if method else "",
@@ -42,7 +50,8 @@ class CompositePass(FullscreenPass):
         if method is not None:
             method.bind_composite(frame, prog)
         threshold = method.composite_threshold() if method else 1.0
-        prog["gua_threshold"] = threshold
+        if "gua_threshold" in prog:  # compiled out when nothing is composited under the fragments
+            prog["gua_threshold"] = threshold
         prog["gua_background"].write(np.asarray(frame.scene.background, dtype=np.float32).tobytes())
         g = frame.resources["gbuffer"]
         tex = self.run_fullscreen(

@@ -38,11 +38,12 @@ class GeometryPass(Pass):
         self.ctx.disable(mgl.BLEND | mgl.CULL_FACE)
         self.ctx.enable(mgl.DEPTH_TEST)
         self.ctx.depth_func = "<"
-        # depth only: the composite reads the colour targets only where an opaque surface was drawn
-        self._depth_only.depth_mask = True  # transparent passes leave it off
-        self._depth_only.clear(depth=1.0)
-        fbo.use()  # clearing bound the depth-only framebuffer
-        frame.draw_opaque()
+        if frame.draws:  # an empty frame needs no depth: the composite then reads none
+            # depth only: the composite reads the colour targets only where an opaque surface was drawn
+            self._depth_only.depth_mask = True  # transparent passes leave it off
+            self._depth_only.clear(depth=1.0)
+            fbo.use()  # clearing bound the depth-only framebuffer
+            frame.draw_opaque()
         g = {
             "fbo": fbo,
             "depth_only": self._depth_only,
@@ -50,6 +51,7 @@ class GeometryPass(Pass):
             "normal": fbo.color_attachments[1],
             "material": fbo.color_attachments[2],
             "depth": fbo.depth_attachment,
+            "has_opaque": any(not d.transparent for d in frame.draws),
         }
         frame.resources["gbuffer"] = g
         frame.stats.setdefault("memory", {})["gbuffer"] = frame.pixel_count * (3 * 8 + 4)
@@ -61,6 +63,7 @@ class GeometryPass(Pass):
             method.render_transparent(frame)
             self.ctx.memory_barrier()
             frame.rerender = method.finish(frame)
+            frame.rerender = self.renderer.raster.finish(frame) or frame.rerender
         elif not has_transparency:
             frame.stats["fragments"] = {"stored": 0}
         self.ctx.depth_func = "<"

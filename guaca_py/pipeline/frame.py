@@ -34,6 +34,9 @@ class FrameState:
     resources: dict = field(default_factory=dict)
     stats: dict = field(default_factory=dict)
     rerender: bool = False
+    # Frame loops without read-back: counters are read a frame late instead of waiting for the GPU
+    # (the stats then describe the previous frame, and an overflow grows the pool for the next one)
+    late_counters: bool = False
 
     @property
     def ctx(self):
@@ -85,14 +88,12 @@ class FrameState:
     def draw_transparent(
         self, uniforms: dict | None = None, per_program: Callable | None = None, order: list[Draw] | None = None
     ) -> None:
-        """Draw every transparent draw (or the draws of `order`, in that order) with the method's program variant."""
-        self.renderer.draw_list(
-            self,
-            self.transparent_draws if order is None else order,
-            transparent=True,
-            uniforms=uniforms or {},
-            per_program=per_program,
-        )
+        """Draw every transparent draw (or the draws of `order`, in that order) with the method's program variant.
+
+        Each draw goes through the hardware or the compute rasterizer (transparency.raster).
+        """
+        draws = self.transparent_draws if order is None else order
+        self.renderer.raster.draw(self, draws, uniforms or {}, per_program)
 
     def draw_opaque(self) -> None:
         """Draw every opaque draw into the currently bound G-buffer."""

@@ -1,0 +1,88 @@
+"""`transparency.raster`: which rasterizer produces a draw's transparent fragments, and `auto`'s rule."""
+
+from __future__ import annotations
+
+import weakref
+
+import numpy as np
+
+from ..pipeline.settings import Setting
+
+RASTER_SETTING = Setting(
+    (str,),
+    "auto",
+    "rasterizer of transparent draws: 'hardware' (fragment shader), 'compute' (compute kernels, "
+    "raster/compute_raster.py) or 'auto' (compute for small triangles on GPUs, see docs/raster.md)",
+    choices=("hardware", "compute", "auto"),
+)
+
+# `auto` takes the compute rasterizer for a draw whose visible triangles cover at most this many
+# pixels on average (estimated from a fixed sample). On the H100 (benchmarks/results/h100/
+# raster_sweep/) compute stored fragments 4-15x faster than the hardware at every size measured,
+# 0.5 to 16384 px², and Table 1's dragons and Sponza 2.8-5x (paper_table_raster/): the bound is
+# the largest size measured, beyond which nothing is known.
+AUTO_MAX_MEAN_AREA_PX = 16384.0
+SAMPLE_TRIANGLES = 256  # triangles per mesh sampled for the estimate (fixed seed, cached)
+
+_areas: dict[tuple, float] = {}  # (mesh id, world, view-projection, size) -> mean area
+_samples: dict[int, tuple[weakref.ref, np.ndarray]] = {}  # id(mesh) -> (weak mesh, sample): meshes may go
+
+
+def auto_rule() -> str:
+    """The `auto` rule in words (printed by `guaca info` and reported with every frame)."""
+    return (
+        f"compute where the device is a GPU and a draw's mean projected triangle area is at most "
+        f"{AUTO_MAX_MEAN_AREA_PX:g} px², hardware otherwise"
+    )
+
+
+def device_rule(caps) -> str:
+    """What `auto` does on this device, and why (for `guaca info`)."""
+    if caps.software:
+        return "hardware for every draw: " + auto_choice(True, 0.0)[1]
+    return auto_rule()
+
+
+def _sample(mesh) -> np.ndarray:
+    """A fixed sample of the mesh's triangle corners as homogeneous object-space points (k·3, 4), cached."""
+    hit = _samples.get(id(mesh))
+    if hit is not None and hit[0]() is mesh:
+        return hit[1]
+    idx = np.asarray(mesh.indices).reshape(-1, 3)
+    if len(idx) > SAMPLE_TRIANGLES:
+        idx = idx[np.random.default_rng(0).choice(len(idx), SAMPLE_TRIANGLES, replace=False)]
+    corners = np.asarray(mesh.positions, dtype=np.float64)[idx.ravel()]
+    points = np.hstack([corners, np.ones((len(corners), 1))])
+    key = id(mesh)
+    _samples[key] = (weakref.ref(mesh, lambda _ref, key=key: _samples.pop(key, None)), points)
+    return points
+
+
+def mean_projected_area(mesh, world: np.ndarray, view_projection: np.ndarray, width: int, height: int) -> float:
+    """Mean screen area in px² of the sampled triangles in front of the near plane and on screen (0: none)."""
+    points = _sample(mesh)
+    key = (id(mesh), world.tobytes(), view_projection.tobytes(), width, height)
+    hit = _areas.get(key)
+    if hit is not None:  # the common case: an unchanged draw and camera
+        return hit
+    clip = (points @ (view_projection @ world).T).reshape(-1, 3, 4)
+    # triangles with all corners in front of the near plane (z > -w)
+    clip = clip[(clip[..., 2] > -clip[..., 3]).all(axis=1)]
+    xy = clip[..., :2] / clip[..., 3:4] * (0.5 * np.array([width, height])) + 0.5 * np.array([width, height])
+    lo, hi = xy.min(axis=1), xy.max(axis=1)
+    xy = xy[((hi >= 0) & (lo <= (width, height))).all(axis=1)]  # on screen
+    e1, e2 = xy[:, 1] - xy[:, 0], xy[:, 2] - xy[:, 0]
+    area = float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).mean()) * 0.5 if len(xy) else 0.0
+    if len(_areas) >= 4096:  # bounded: a moving camera makes every key new
+        _areas.clear()
+    _areas[key] = area
+    return area
+
+
+def auto_choice(software: bool, mean_area: float) -> tuple[str, str]:
+    """(rasterizer, reason) of `auto` for one draw."""
+    if software:
+        return "hardware", "software rasterizer: compute kernels would run on the same CPU cores"
+    if mean_area <= AUTO_MAX_MEAN_AREA_PX:
+        return "compute", f"mean projected triangle area {mean_area:.1f} px² <= {AUTO_MAX_MEAN_AREA_PX:g}"
+    return "hardware", f"mean projected triangle area {mean_area:.1f} px² > {AUTO_MAX_MEAN_AREA_PX:g}"

@@ -1,0 +1,324 @@
+"""A rasterizer for transparent draws written in compute shaders, feeding the method's A-buffer insertion.
+
+After Laine & Karras, "High-Performance Software Rasterization on GPUs" (HPG 2011), reduced to
+what transparent fragments need (no depth buffer, no ordering: the A-buffer sorts). Per draw:
+
+1. vertex   one thread per vertex: the vertex stage with the material's displacement methods;
+2. setup    one thread per triangle: setup; a triangle whose candidate box holds at most
+            SMALL_AREA pixels is rasterized by that thread, a larger one is queued;
+3. bin      one workgroup per queued triangle: rasterizes it when its box holds at most
+            MEDIUM_AREA pixels, else makes a (triangle, tile) job per TILE² tile it may cover;
+4. fine     one workgroup per job, one thread per pixel.
+
+Every covered pixel runs the material's visibility methods and the method's gua_submit_at()
+(raster/fragment_host.glsl.j2): one material source, two hosts. Stages 3 and 4 are dispatched
+indirectly from counts the GPU writes (raster/args.comp.j2); the CPU reads the frame's totals
+once, after the pass, through a copy. The queue and the job list are sized to the frame, grow
+to the measured need on overflow (the frame is rendered again, at most MAX_REGROW times) and
+report what they hold and drop.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..pipeline.frame import mat_bytes
+from ..shaders import SourceMap
+from .material_support import compute_material
+
+# state words of raster/state.glsl.j2, in order
+STATE_WORDS = (
+    "large",
+    "jobs",
+    "large_n",
+    "jobs_n",
+    "bin_x",
+    "bin_y",
+    "bin_z",
+    "fine_x",
+    "fine_y",
+    "fine_z",
+    "large_total",
+    "large_peak",
+    "large_dropped",
+    "jobs_total",
+    "jobs_peak",
+    "jobs_dropped",
+    "tiled",
+    "tiled_total",
+)
+TILE = 8  # tile edge in pixels of the large-triangle path (one 64-thread workgroup per job, as L&K's fine raster)
+SMALL_AREA = 128  # candidate boxes up to this many pixels are rasterized by one thread
+MEDIUM_AREA = 1024  # larger boxes up to this many pixels by one 64-thread workgroup, without tiles
+DEPTH_UNIT = 7  # texture unit of the G-buffer depth (units 8+ hold material textures)
+VERTEX_RECORD_BYTES = 48  # clip position, world position + u, normal + v
+MAX_REGROW = 2  # re-renders one frame may take to grow the queue or the job list
+_GROUP = 64  # threads per workgroup of the vertex and setup stages
+_MAX_GROUPS_X = 65535  # the GL minimum of GL_MAX_COMPUTE_WORK_GROUP_COUNT; grids wrap into y
+
+
+def _grid(items: int, group: int = _GROUP) -> tuple[int, int, int]:
+    groups = max(1, math.ceil(items / group))
+    return min(groups, _MAX_GROUPS_X), math.ceil(groups / _MAX_GROUPS_X), 1
+
+
+class ComputeRasterizer:
+    """Draws transparent draws through compute kernels into the current method's insertion code."""
+
+    def __init__(self, renderer):
+        self.renderer = renderer
+        self.ctx = renderer.ctx
+        self._state = self._readback = self._verts = self._large = self._jobs = None
+        self.vertex_capacity = 0
+        self.large_capacity = 0  # queued large triangles per draw
+        self.job_capacity = 0  # (triangle, tile) jobs per draw
+        self._want: dict[str, int] = {}
+        self._fresh = True  # the next draw starts a geometry pass: reset the state
+        self._frame = None  # the frame being drawn (a new one always starts afresh)
+        self._triangles = 0
+        self.regrown = 0
+        self.tile = TILE  # tunable per renderer (benchmarks/raster_sweep.py --tile, --small-area)
+        self.small_area = SMALL_AREA
+        self.medium_area = MEDIUM_AREA
+        self._materials: dict[int, tuple] = {}  # id(material) -> (material, ComputeMaterial)
+        self._program_sets: dict[tuple, tuple] = {}  # program key -> the four kernels (built once)
+
+    # ------------------------------------------------------------------ programs
+    def _common(self, draw) -> dict:
+        return {"material_uniforms": "\n".join(u.glsl_decl() for u in draw.material.uniforms.values())}
+
+    def _raster_vars(self) -> dict:
+        return {
+            "raster_state_words": STATE_WORDS,
+            "raster_tile": self.tile,
+            "raster_small_area": self.small_area,
+            "raster_medium_area": self.medium_area,
+            "raster_depth_unit": DEPTH_UNIT,
+        }
+
+    def _compute_material(self, mat):
+        hit = self._materials.get(id(mat))
+        if hit is None or hit[0] is not mat:
+            hit = self._materials[id(mat)] = (mat, compute_material(mat))
+        return hit[1]
+
+    def material_problem(self, draw) -> str | None:
+        """Why `draw`'s material cannot run in the compute host (None: it can)."""
+        return self._compute_material(draw.material).problem
+
+    def _programs(self, draw):
+        """(vertex, setup, bin, fine) kernels for the draw's material and the current method, compiled once."""
+        mat, method = draw.material, self.renderer.method
+        cm = self._compute_material(mat)
+        if cm.problem:
+            raise ConfigError(cm.problem, mat.path, None, "transparency.raster")
+        mvars = method.template_vars()
+        label = f"material '{mat.name}'"
+        key = (
+            "compute_raster",
+            str(mat.path),
+            method.id,
+            tuple(sorted((k, str(v)) for k, v in mvars.items())),
+            self.tile,
+            self.small_area,
+            self.medium_area,
+        )
+        hit = self._program_sets.get(key)
+        if hit is not None:
+            return hit
+        shaders = self.renderer.shaders
+        progs = []
+        for stage, template in (
+            ("vertex", "raster/vertex.comp.j2"),
+            ("setup", "raster/setup.comp.j2"),
+            ("bin", "raster/bin.comp.j2"),
+            ("fine", "raster/fine.comp.j2"),
+        ):
+            smap = SourceMap()
+            if stage == "vertex":
+                variables = dict(
+                    self._common(draw),
+                    displacement_methods="".join(
+                        smap.insert(m.source, m.file, m.first_line, f"{label} method '{m.name}'")
+                        for m in mat.methods.get("displacement", [])
+                    ),
+                    displacement_calls=[m.name for m in mat.methods.get("displacement", [])],
+                )
+            else:
+                variables = dict(
+                    self._common(draw),
+                    **self._raster_vars(),
+                    **mvars,
+                    compute_raster=True,
+                    frag_xy="gua_frag_xy",
+                    tc_derivatives=cm.tc_derivatives,
+                    visibility_methods="".join(
+                        smap.insert(cm.sources[m.name], m.file, m.first_line, f"{label} method '{m.name}'")
+                        for m in mat.methods.get("visibility", [])
+                    ),
+                    visibility_calls=[m.name for m in mat.methods.get("visibility", [])],
+                    method_extensions=method.extensions(),
+                    method_fragment_template=method.fragment_template(),
+                )
+            progs.append(
+                shaders.program(
+                    (*key, stage),
+                    {"compute_shader": (template, variables)},
+                    smap,
+                    label=f"{label} ({mat.path}), compute raster {stage}",
+                )
+            )
+        self._program_sets[key] = tuple(progs)
+        return self._program_sets[key]
+
+    def _kernel(self, template: str):
+        return self.renderer.shaders.compute(template, **self._raster_vars())
+
+    # ------------------------------------------------------------------ storage
+    def _begin(self, frame, draws) -> None:
+        """First draw of a geometry pass: size the buffers to the frame, reset the state on the GPU."""
+        ctx = self.ctx
+        tiles = math.ceil(frame.width / self.tile) * math.ceil(frame.height / self.tile)
+        triangles = max(d.mesh.triangle_count for d in draws)
+        vertices = max(len(d.mesh.positions) for d in draws)
+        large = self._want.pop("large", 0) or max(self.large_capacity, 1024, triangles // 8)
+        jobs = self._want.pop("jobs", 0) or max(self.job_capacity, 4096, 4 * tiles)
+        if self._state is None:
+            self._state = ctx.buffer(reserve=len(STATE_WORDS) * 4)
+            self._readback = ctx.buffer(reserve=len(STATE_WORDS) * 4)
+        if vertices > self.vertex_capacity:
+            self._release(self._verts)
+            self.vertex_capacity = vertices
+            self._verts = ctx.buffer(reserve=vertices * VERTEX_RECORD_BYTES)
+        if large != self.large_capacity:
+            self._release(self._large)
+            self.large_capacity, self._large = large, ctx.buffer(reserve=large * 4)
+        if jobs != self.job_capacity:
+            self._release(self._jobs)
+            self.job_capacity, self._jobs = jobs, ctx.buffer(reserve=jobs * 8)
+        args = self._kernel("raster/args.comp.j2")
+        self._state.bind_to_storage_buffer(11)
+        args["gua_args_mode"] = 0
+        args["gua_capacity"] = 0
+        args.run(1)
+        ctx.memory_barrier()
+        self._triangles = 0
+
+    @staticmethod
+    def _release(buf) -> None:
+        if buf is not None:
+            buf.release()
+
+    # ------------------------------------------------------------------ drawing
+    def draw(self, frame, draws, uniforms: dict, per_program=None) -> None:
+        """Rasterize `draws` into the method's storage (bound by the method, as for hardware draws)."""
+        if not draws:
+            return
+        if self._fresh or self._frame is not frame:
+            self._begin(frame, draws)
+            self._fresh, self._frame = False, frame
+        ctx, r = self.ctx, self.renderer
+        frame.resources["gbuffer"]["depth"].use(location=DEPTH_UNIT)
+        args = self._kernel("raster/args.comp.j2")
+        for d in draws:
+            if len(d.mesh.positions) > self.vertex_capacity:  # a later call of the pass with a larger mesh
+                self._release(self._verts)
+                self.vertex_capacity = len(d.mesh.positions)
+                self._verts = ctx.buffer(reserve=self.vertex_capacity * VERTEX_RECORD_BYTES)
+            vert, setup, binner, fine = self._programs(d)
+            vbo, ibo = r.meshes.buffers(d.mesh)
+            self._verts.bind_to_storage_buffer(8)
+            vbo.bind_to_storage_buffer(9)
+            ibo.bind_to_storage_buffer(10)
+            self._state.bind_to_storage_buffer(11)
+            self._large.bind_to_storage_buffer(12)
+            self._jobs.bind_to_storage_buffer(13)
+            frame.set_frame_uniforms(vert)
+            vert["gua_model_matrix"].write(mat_bytes(d.world))
+            if "gua_normal_matrix" in vert:
+                vert["gua_normal_matrix"].write(mat_bytes(np.linalg.inv(d.world).T))
+            vert["gua_vertex_count"] = len(d.mesh.positions)
+            r._set_material_uniforms(vert, d)
+            vert.run(*_grid(len(d.mesh.positions)))
+            ctx.memory_barrier()
+            for prog in (setup, binner, fine):
+                frame.set_frame_uniforms(prog)
+                for k, v in uniforms.items():
+                    if k in prog:
+                        prog[k] = v
+                if "gua_draw_index" in prog:
+                    prog["gua_draw_index"] = d.index
+                r._set_material_uniforms(prog, d)
+                if per_program is not None:
+                    per_program(prog)
+            setup["gua_tri_count"] = d.mesh.triangle_count
+            setup["gua_large_capacity"] = self.large_capacity
+            setup.run(*_grid(d.mesh.triangle_count))
+            ctx.memory_barrier()
+            args["gua_args_mode"], args["gua_capacity"] = 1, self.large_capacity
+            args.run(1)
+            ctx.memory_barrier()
+            binner["gua_job_capacity"] = self.job_capacity
+            binner.run_indirect(self._state, STATE_WORDS.index("bin_x") * 4)
+            ctx.memory_barrier()
+            args["gua_args_mode"], args["gua_capacity"] = 2, self.job_capacity
+            args.run(1)
+            ctx.memory_barrier()
+            fine.run_indirect(self._state, STATE_WORDS.index("fine_x") * 4)
+            ctx.memory_barrier()
+            self._triangles += d.mesh.triangle_count
+
+    def finish(self, frame) -> bool:
+        """Totals into frame.stats; after an overflow, grow and ask for the frame again (MAX_REGROW times)."""
+        if self._fresh or self._frame is not frame:  # nothing drawn through compute in this pass
+            return False
+        self._fresh, self._frame = True, None
+        self.ctx.copy_buffer(self._readback, self._state)
+        c = dict(zip(STATE_WORDS, np.frombuffer(self._readback.read(), dtype=np.uint32).tolist()))
+        frame.stats.setdefault("raster", {})["compute"] = {
+            "triangles": self._triangles,
+            "large_triangles": c["large_total"],
+            "tiled_triangles": c["tiled_total"],
+            "tile_jobs": c["jobs_total"],
+            "large_dropped": c["large_dropped"],
+            "tile_jobs_dropped": c["jobs_dropped"],
+        }
+        frame.stats.setdefault("memory", {}).update(self.memory(c["large_peak"], c["jobs_peak"]))
+        dropped = c["large_dropped"] or c["jobs_dropped"]
+        if dropped and self.regrown < MAX_REGROW:
+            self.regrown += 1
+            if c["large_dropped"]:
+                self._want["large"] = int(c["large_peak"] * 1.15) + 1024
+            if c["jobs_dropped"]:
+                # a larger queue lets more triangles through to binning: leave room for their jobs too
+                scale = 1.0 if not c["large_dropped"] else c["large_peak"] / max(1, self.large_capacity)
+                self._want["jobs"] = int(c["jobs_peak"] * scale * 1.15) + 4096
+            return True
+        if dropped:
+            frame.stats.setdefault("warnings", []).append(
+                f"compute raster: {c['large_dropped']} large triangles and {c['jobs_dropped']} tile jobs dropped "
+                f"(queue {self.large_capacity}, jobs {self.job_capacity} per draw) after {self.regrown} regrowths"
+            )
+        self.regrown = 0
+        return False
+
+    def memory(self, large_peak: int = 0, jobs_peak: int = 0) -> dict:
+        """Bytes of the rasterizer's buffers, allocated and used by the busiest draw."""
+        return {
+            "raster_vertices": self.vertex_capacity * VERTEX_RECORD_BYTES,
+            "raster_large_queue": self.large_capacity * 4,
+            "raster_large_queue_used": min(large_peak, self.large_capacity) * 4,
+            "raster_tile_jobs": self.job_capacity * 8,
+            "raster_tile_jobs_used": min(jobs_peak, self.job_capacity) * 8,
+        }
+
+    def release(self) -> None:
+        """Free all buffers."""
+        for b in (self._state, self._readback, self._verts, self._large, self._jobs):
+            self._release(b)
+        self._state = self._readback = self._verts = self._large = self._jobs = None
+        self.vertex_capacity = self.large_capacity = self.job_capacity = 0
+        self._fresh, self._frame = True, None

@@ -1,0 +1,79 @@
+"""Routes each transparent draw to the hardware or the compute rasterizer (`transparency.raster`)."""
+
+from __future__ import annotations
+
+from ..errors import ConfigError
+from .choice import auto_choice, auto_rule, mean_projected_area
+from .compute_raster import ComputeRasterizer
+
+
+class RasterRouter:
+    """Per frame and draw: which rasterizer makes the transparent fragments, and why (frame.stats['raster'])."""
+
+    def __init__(self, renderer):
+        self.renderer = renderer
+        self._compute: ComputeRasterizer | None = None
+        self._stats_of = None  # the frame (and pass) whose stats the draws add to
+
+    @property
+    def compute(self) -> ComputeRasterizer:
+        """The compute rasterizer (buffers are made on first use)."""
+        if self._compute is None:
+            self._compute = ComputeRasterizer(self.renderer)
+        return self._compute
+
+    def setting(self) -> str:
+        """The method's `raster` setting: hardware, compute or auto."""
+        return self.renderer.method.settings.get("raster", "hardware")
+
+    def choose(self, frame, draw) -> tuple[str, str]:
+        """(rasterizer, reason) for one transparent draw; `raster: compute` errors where it cannot run."""
+        setting = self.setting()
+        if setting == "hardware":
+            return "hardware", "raster: hardware"
+        refusal = self.renderer.method.compute_raster_refusal()
+        if refusal:  # raster: compute was refused when the method was set
+            return "hardware", f"method '{self.renderer.method.id}': {refusal}"
+        if setting == "auto" and self.renderer.caps.software:
+            return auto_choice(True, 0.0)
+        problem = self.compute.material_problem(draw)
+        if problem:
+            if setting == "compute":
+                raise ConfigError(problem, draw.material.path, None, "transparency.raster")
+            return "hardware", problem
+        if setting == "compute":
+            return "compute", "raster: compute"
+        area = mean_projected_area(draw.mesh, draw.world, frame.projection @ frame.view, frame.width, frame.height)
+        return auto_choice(False, area)
+
+    def draw(self, frame, draws, uniforms: dict, per_program=None) -> None:
+        """Draw transparent `draws`: compute ones through the kernels, the rest through the fragment pipeline."""
+        setting = self.setting()
+        if self._stats_of is not frame:  # first draw of this frame's pass (a re-render starts afresh)
+            frame.stats["raster"] = {"setting": setting}
+            self._stats_of = frame
+        info = frame.stats["raster"]
+        if setting == "auto":
+            info["rule"] = auto_rule()
+        hardware, compute = [], []
+        why = info.setdefault("why", {})
+        for d in draws:
+            kind, reason = self.choose(frame, d)
+            (compute if kind == "compute" else hardware).append(d)
+            why[f"{kind}: {reason}"] = why.get(f"{kind}: {reason}", 0) + 1
+        info["compute_draws"] = info.get("compute_draws", 0) + len(compute)
+        info["hardware_draws"] = info.get("hardware_draws", 0) + len(hardware)
+        if compute:
+            self.compute.draw(frame, compute, uniforms, per_program)
+        if hardware:
+            self.renderer.draw_list(frame, hardware, transparent=True, uniforms=uniforms, per_program=per_program)
+
+    def finish(self, frame) -> bool:
+        """The compute rasterizer's totals and memory; True asks for the frame again (its storage grew)."""
+        self._stats_of = None
+        return self._compute.finish(frame) if self._compute is not None else False
+
+    def release(self) -> None:
+        """Free the compute rasterizer's buffers."""
+        if self._compute is not None:
+            self._compute.release()

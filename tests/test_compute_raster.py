@@ -1,0 +1,518 @@
+"""`transparency.raster: compute`: the compute rasterizer against the float64 reference and the
+hardware rasterizer, its coverage rules (shared edges, near plane, facing), materials that need
+derivatives, methods that refuse it, its overflow handling and the `auto` rule."""
+
+from __future__ import annotations
+
+import colorsys
+import dataclasses
+import re
+import shutil
+
+import numpy as np
+import pytest
+from conftest import quad_node, simple_scene
+from reference import (
+    ReferenceCache,
+    compare,
+    edge_mask,
+    interpenetrating_scene,
+    layered_quads_scene,
+    triangle_mesh,
+    unlit,
+)
+
+from guaca_py.errors import ConfigError, UnsupportedMethodError
+from guaca_py.scene.graph import Light, MaterialInstance, MeshData, Node, Transform
+
+SIZE = 96
+ONE_PASS = [
+    "presort_lf",
+    "presort_lf_et",
+    "presort_lf_merge2_et",
+    "presort_cs",
+    "presort_cs_et",
+    "post_sort",
+    "post_merge16",
+]
+_REFS = ReferenceCache()
+
+
+def both(renderer_factory, method, pipeline="exact", **overrides):
+    """(compute, hardware) renderers of one method."""
+    return tuple(
+        renderer_factory(pipeline, method=method, method_overrides={**overrides, "raster": raster})
+        for raster in ("compute", "hardware")
+    )
+
+
+def differing(a, b) -> np.ndarray:
+    """(H, W) bool: pixels whose 8-bit colour differs."""
+    return (a.astype(int) != b.astype(int)).any(axis=2)
+
+
+def tessellated_plane(n: int, size: float, jitter: float, seed: int = 0) -> MeshData:
+    """A size x size square in the XY plane as 2n² triangles with jittered interior vertices."""
+    g = np.linspace(-size / 2, size / 2, n + 1)
+    x, y = np.meshgrid(g, g, indexing="xy")
+    rng = np.random.default_rng(seed)
+    inner = np.zeros_like(x, dtype=bool)
+    inner[1:-1, 1:-1] = True
+    x = x + np.where(inner, rng.uniform(-jitter, jitter, x.shape), 0.0) * (size / n)
+    y = y + np.where(inner, rng.uniform(-jitter, jitter, y.shape), 0.0) * (size / n)
+    pos = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=1).astype(np.float32)
+    i = np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]
+    quads = np.stack([i, i + 1, i + n + 2, i + n + 1], axis=-1).reshape(-1, 4)
+    # alternate the diagonal so edges run in both directions
+    flip = (np.arange(len(quads)) + np.arange(len(quads)) // n) % 2 == 1
+    a = np.where(flip[:, None], quads[:, [0, 1, 3]], quads[:, [0, 1, 2]])
+    b = np.where(flip[:, None], quads[:, [1, 2, 3]], quads[:, [0, 2, 3]])
+    idx = np.concatenate([a, b]).astype(np.uint32)
+    return MeshData(
+        pos, np.tile(np.float32([0, 0, 1]), (len(pos), 1)), (pos[:, :2] / size + 0.5).astype(np.float32), idx
+    )
+
+
+# ----------------------------------------------------------------------------- exact against the reference
+
+
+@pytest.mark.parametrize("method", ONE_PASS)
+def test_compute_matches_reference_and_hardware(renderer_factory, method):
+    # 18 tilted layers with an opaque quad between them, and three interpenetrating triangles
+    compute, hardware = both(renderer_factory, method)
+    for key, scene in (
+        ("layered", layered_quads_scene(n_layers=18, order="shuffled", seed=3)),
+        ("inter", interpenetrating_scene(order="shuffled", seed=1)),
+    ):
+        ref, mask, layers = _REFS.of(key, scene, SIZE, SIZE)
+        c, h = compute.render(scene, SIZE, SIZE), hardware.render(scene, SIZE, SIZE)
+        err = compare(c.image, ref, mask)
+        assert err["max_abs_255"] <= 2.0, (key, err)
+        assert c.stats["raster"]["compute_draws"] > 0 and c.stats["raster"]["hardware_draws"] == 0
+        assert c.stats["fragments"]["overflow"] == 0 and c.stats["fragments"]["guard_abandoned"] == 0
+        # the two rasterizers differ only along triangle edges, and there in a handful of pixels
+        # (llvmpipe: 0-3 of 9216; the bound leaves room for another GPU's snapping of vertices)
+        diff = differing(c.image, h.image)
+        assert not (diff & ~mask).any(), (key, np.argwhere(diff & ~mask)[:5])
+        assert diff.sum() <= 0.005 * SIZE * SIZE, (key, int(diff.sum()))
+        assert abs(c.stats["fragments"]["stored"] - h.stats["fragments"]["stored"]) <= 0.005 * layers.sum()
+
+
+def test_early_termination_with_compute(renderer_factory):
+    # 20 full-screen layers of alpha 0.5 front to back: saturation culls fragments before insertion
+    nodes = [
+        quad_node(f"p{i}", 2.0 - 0.25 * i, colorsys.hsv_to_rgb(i / 20, 0.8, 0.9), 0.5, size=12.0) for i in range(20)
+    ]
+    scene = simple_scene(nodes, background=(0.05, 0.08, 0.12))
+    ref, mask, _ = _REFS.of("et20", scene, 64, 64)
+    r = renderer_factory("exact", method="presort_lf_et", method_overrides={"raster": "compute", "threshold": 0.9})
+    frame = r.render(scene, 64, 64)
+    fr = frame.stats["fragments"]
+    assert fr["early_termination_culled"] > 0 and fr["stored"] < 20 * 64 * 64, fr
+    assert compare(frame.image, ref, mask)["max_abs_255"] <= 0.1 * 255 + 2.0
+
+
+# ----------------------------------------------------------------------------- coverage rules
+
+
+@pytest.mark.parametrize("jitter", [0.0, 0.25])
+def test_shared_edges_cover_every_pixel_once(renderer_factory, jitter):
+    # three layers of a plane larger than the view cut into small triangles (1-6 px each, many
+    # through the one-thread path): without holes or double coverage every pixel stores exactly
+    # one fragment per layer and the image is that of three untessellated planes
+    n, size = 64, 9.0
+    layers = [(1.0, (0.9, 0.2, 0.2), 0.4), (0.0, (0.2, 0.8, 0.3), 0.5), (-1.0, (0.2, 0.3, 0.9), 0.6)]
+    nodes = [
+        Node(f"t{i}", Transform((0.0, 0.0, z), (0.0, 0.0, 7.0 * i)), tessellated_plane(n, size, jitter, i), unlit(c, a))
+        for i, (z, c, a) in enumerate(layers)
+    ]
+    plain = [
+        Node(f"p{i}", Transform((0.0, 0.0, z), (0.0, 0.0, 7.0 * i)), tessellated_plane(1, size, 0.0), unlit(c, a))
+        for i, (z, c, a) in enumerate(layers)
+    ]
+    w = 80
+    r = renderer_factory("exact", method="presort_lf", method_overrides={"raster": "compute"})
+    frame = r.render(simple_scene(nodes), w, w)
+    assert frame.stats["fragments"]["stored"] == 3 * w * w
+    stats = frame.stats["raster"]["compute"]
+    assert stats["large_triangles"] < stats["triangles"] // 2, stats  # the small-triangle path did most
+    ref, mask, layer_count = _REFS.of("plain3", simple_scene(plain), w, w)
+    assert layer_count.min() == 3
+    assert compare(frame.image, ref, mask)["max_abs_255"] <= 2.0
+
+
+def test_triangle_crossing_the_near_plane(renderer_factory):
+    # one vertex behind the camera (z=5 is the eye), two in front: clipped at the near plane
+    tri = Node(
+        "near",
+        mesh=triangle_mesh((-1.5, -1.2, 0.0), (1.6, -0.8, 0.5), (0.2, 0.4, 7.0)),
+        material=unlit((0.9, 0.5, 0.1), 0.6),
+    )
+    back = quad_node("back", -1.0, (0.1, 0.4, 0.9), 0.5, size=3.0)
+    scene = simple_scene([tri, back])
+    ref, mask, layers = _REFS.of("near", scene, SIZE, SIZE)
+    assert (layers == 2).sum() > 150  # the clipped triangle is seen over the back quad
+    compute, hardware = both(renderer_factory, "presort_lf")
+    c, h = compute.render(scene, SIZE, SIZE), hardware.render(scene, SIZE, SIZE)
+    assert compare(c.image, ref, mask)["max_abs_255"] <= 2.0
+    diff = differing(c.image, h.image)
+    assert not (diff & ~mask).any() and diff.sum() <= 0.005 * SIZE * SIZE
+
+
+def test_back_faces_like_the_fragment_host(renderer_factory, tmp_path):
+    # a quad seen from the front and one seen from the back (rotated 200 degrees), drawn with a
+    # material that shows gua_normal: the compute host flips it for back faces exactly as the
+    # fragment host's gl_FrontFacing does (GL's counter-clockwise front faces)
+    (tmp_path / "show_normal.json").write_text(
+        '{"name": "show_normal", "uniforms": {"alpha": {"type": "float", "default": 0.5}},'
+        ' "visibility": [{"name": "show_normal_visibility", "source": ["void show_normal_visibility() {",'
+        ' "gua_color = gua_normal * 0.5 + 0.5; gua_alpha = alpha; gua_unlit = true;", "}"]}]}'
+    )
+
+    def node(name, z, rot):
+        return Node(
+            name, Transform((0.4 * z, 0.0, z), (10.0, rot, 0.0)), tessellated_plane(6, 2.5, 0.2), unlit((1, 1, 1))
+        )
+
+    nodes = [node("front", 0.5, 20.0), node("back", -0.5, 200.0)]
+    for n in nodes:
+        n.material = MaterialInstance("show_normal", {})
+    scene = simple_scene(nodes)
+    compute, hardware = (
+        renderer_factory("exact", method="presort_lf_et", method_overrides={"raster": r}, material_paths=[tmp_path])
+        for r in ("compute", "hardware")
+    )
+    c, h = compute.render(scene, SIZE, SIZE), hardware.render(scene, SIZE, SIZE)
+    tris = []
+    for n, world in scene.walk():
+        p = n.mesh.positions @ world[:3, :3].T + world[:3, 3]
+        tris.append(p[n.mesh.indices.reshape(-1, 3)])
+    mask = edge_mask(np.concatenate(tris), scene.camera, SIZE, SIZE)
+    diff = np.abs(c.linear - h.linear).max(axis=2)
+    assert diff[~mask].max() < 1e-3, float(diff[~mask].max())
+    # both quads' normals face the camera (+z, blue > 0.5) once flipped for the back face
+    assert c.stats["raster"]["compute_draws"] == 2 and (c.linear[~mask][:, 2] > 0.3).sum() > 500
+
+
+def test_textured_material_gets_quad_derivatives(renderer_factory, tmp_path):
+    # texture() on gua_texcoords runs as textureGrad with the rasterizer's quad differences: the
+    # mip level, and so the image, match the hardware's implicit LOD off the edges
+    from PIL import Image
+
+    rng = np.random.default_rng(2)
+    Image.fromarray(rng.integers(0, 256, (64, 64, 4), dtype=np.uint8)).save(tmp_path / "noise.png")
+    node = Node(
+        "tex",
+        Transform((0.0, 0.0, 0.0), (-50.0, 10.0, 0.0)),
+        tessellated_plane(4, 3.0, 0.0),
+        MaterialInstance("pbr_textured", {"albedo_map": str(tmp_path / "noise.png"), "alpha": 0.6}),
+    )
+    scene = simple_scene([node])
+    scene.lights = [Light("directional", direction=(0.0, -1.0, -1.0), intensity=2.0)]
+    compute, hardware = both(renderer_factory, "presort_lf")
+    c, h = compute.render(scene, 64, 64), hardware.render(scene, 64, 64)
+    p = node.mesh.positions @ node.transform.matrix()[:3, :3].T + node.transform.matrix()[:3, 3]
+    mask = edge_mask(p[node.mesh.indices.reshape(-1, 3)], scene.camera, 64, 64)
+    diff = np.abs(c.linear - h.linear).max(axis=2)[~mask]
+    assert np.median(diff) < 1e-3 and diff.max() < 0.05, (float(np.median(diff)), float(diff.max()))
+
+
+# ----------------------------------------------------------------------------- what it refuses
+
+
+def _material(tmp_path, body: str):
+    (tmp_path / "ddx.json").write_text(
+        '{"name": "ddx", "uniforms": {"alpha": {"type": "float", "default": 0.5}},'
+        ' "visibility": [{"name": "ddx_visibility", "source": ["void ddx_visibility() {", '
+        f'"{body}", "}}"]}}]}}'
+    )
+    return tmp_path
+
+
+def test_material_needing_derivatives_is_named(renderer_factory, tmp_path):
+    mats = _material(tmp_path, "gua_color = vec3(abs(dFdx(gua_texcoords.x))); gua_alpha = alpha;")
+    scene = simple_scene([Node("d", Transform(), tessellated_plane(2, 2.0, 0.0), MaterialInstance("ddx", {}))])
+    r = renderer_factory("exact", method="presort_lf", method_overrides={"raster": "compute"}, material_paths=[mats])
+    with pytest.raises(ConfigError, match=r"material 'ddx'.*dFdx.*raster: hardware"):
+        r.render(scene, 32, 32)
+    # auto: that draw goes through the hardware, with the reason in the stats
+    from guaca_py.raster.choice import auto_choice
+
+    a = renderer_factory("exact", method="presort_lf", method_overrides={"raster": "auto"}, material_paths=[mats])
+    a.caps = type(a.caps)(**{**a.caps.as_dict(), "software": False})  # as a GPU would decide
+    frame = a.render(scene, 32, 32)
+    assert frame.stats["raster"]["hardware_draws"] == 1
+    assert any("dFdx" in w for w in frame.stats["raster"]["why"])
+    assert auto_choice(False, 1.0)[0] == "compute"
+
+
+@pytest.mark.parametrize("method", ["depth_peeling", "dfb", "unsorted_blend", "weighted_blended"])
+def test_methods_without_compute_path_refuse_it(renderer_factory, method):
+    with pytest.raises(UnsupportedMethodError, match=f"method '{method}' cannot take transparency.raster: compute"):
+        renderer_factory("exact", method=method, method_overrides={"raster": "compute"})
+    # auto keeps them on the hardware, saying why
+    r = renderer_factory("exact", method=method, method_overrides={"raster": "auto"})
+    frame = r.render(layered_quads_scene(n_layers=4), 32, 32)
+    assert frame.stats["raster"]["compute_draws"] == 0
+
+
+def test_raster_setting_is_validated():
+    from guaca_py.pipeline.config import pipeline_from_text
+
+    text = "transparency: {method: presort_lf_et, raster: %s}\npasses: [geometry, light_culling, composite]\n"
+    assert pipeline_from_text(text % "compute").transparency["raster"] == "compute"
+    with pytest.raises(ConfigError, match=r"transparency.*raster.*hardware, compute, auto"):
+        pipeline_from_text(text % "software")
+
+
+# ----------------------------------------------------------------------------- storage, overflow, auto
+
+
+def test_overflow_regrows_and_reports(renderer_factory, monkeypatch):
+    scene = layered_quads_scene(n_layers=12, order="shuffled", seed=2)
+    ref, mask, _ = _REFS.of("layered12", scene, 64, 64)
+    r = renderer_factory("exact", method="presort_lf_et", method_overrides={"raster": "compute"})
+    cr = r.raster.compute
+    cr._want = {"large": 1, "jobs": 8}  # far too small: the first attempt drops triangles and jobs
+    frame = r.render(scene, 64, 64)
+    assert frame.stats["regrown"] >= 1 and not frame.stats.get("warnings")
+    assert cr.large_capacity > 1 and cr.job_capacity > 8
+    assert frame.stats["raster"]["compute"]["large_dropped"] == 0
+    mem = frame.stats["memory"]
+    assert 0 < mem["raster_tile_jobs_used"] <= mem["raster_tile_jobs"] and mem["raster_vertices"] > 0
+    assert compare(frame.image, ref, mask)["max_abs_255"] <= 2.0
+    # with no re-render allowed the loss is counted and warned, and the image stays valid
+    from guaca_py.raster import compute_raster
+
+    monkeypatch.setattr(compute_raster, "MAX_REGROW", 0)
+    cr._want = {"large": 1, "jobs": 8}
+    frame = r.render(scene, 64, 64)
+    st = frame.stats["raster"]["compute"]
+    assert st["large_dropped"] > 0 and any("compute raster" in w for w in frame.stats["warnings"])
+    assert np.isfinite(frame.linear).all()
+
+
+def test_auto_rule(renderer_factory):
+    from guaca_py.raster.choice import AUTO_MAX_MEAN_AREA_PX, auto_choice, mean_projected_area
+
+    assert auto_choice(True, 1.0)[0] == "hardware"  # software rasterizer
+    assert auto_choice(False, AUTO_MAX_MEAN_AREA_PX)[0] == "compute"
+    assert auto_choice(False, AUTO_MAX_MEAN_AREA_PX * 2)[0] == "hardware"
+    # a 2x2 quad at distance 5 with fov 50 at 100 px: 2 triangles of half its projected area
+    scene = simple_scene([quad_node("q", 0.0, (1, 1, 1), 0.5)])
+    cam = scene.camera
+    proj, view = cam.projection_matrix(1.0), cam.view_matrix()
+    side = 2.0 / (2 * 5.0 * np.tan(np.radians(25.0))) * 100
+    area = mean_projected_area(scene.nodes[0].mesh, np.eye(4), proj @ view, 100, 100)
+    assert area == pytest.approx(side * side / 2, rel=1e-6)
+    # on llvmpipe auto keeps every draw on the hardware and says why
+    r = renderer_factory("exact", method="presort_lf_et")
+    frame = r.render(scene, 32, 32)
+    assert r.method.settings["raster"] == "auto"
+    expected = "compute" if (not r.caps.software and area <= AUTO_MAX_MEAN_AREA_PX) else "hardware"
+    assert frame.stats["raster"][f"{expected}_draws"] == 1 and "rule" in frame.stats["raster"]
+
+
+def test_auto_mixes_both_rasterizers_in_one_frame(renderer_factory, monkeypatch):
+    # as on a GPU with a threshold between the two sizes: small triangles go through compute, large
+    # quads through the hardware, all into one A-buffer; the composite is exact either way
+    from guaca_py.raster import choice
+
+    monkeypatch.setattr(choice, "AUTO_MAX_MEAN_AREA_PX", 64.0)
+    r = renderer_factory("exact", method="presort_lf_et", method_overrides={"raster": "auto"})
+    r.caps = dataclasses.replace(r.caps, software=False)
+    fine = Node(
+        "fine",
+        Transform((0.0, 0.0, 0.5), (0.0, 0.0, 5.0)),
+        tessellated_plane(40, 3.0, 0.2),
+        unlit((0.9, 0.8, 0.1), 0.4),
+    )
+    plain = Node(
+        "plain",
+        Transform((0.0, 0.0, 0.5), (0.0, 0.0, 5.0)),
+        tessellated_plane(1, 3.0, 0.0),
+        unlit((0.9, 0.8, 0.1), 0.4),
+    )
+    layers = layered_quads_scene(n_layers=8, order="shuffled", seed=4)
+    frame = r.render(simple_scene([*layers.nodes, fine], background=layers.background), 64, 64)
+    info = frame.stats["raster"]
+    assert info["compute_draws"] == 1 and info["hardware_draws"] == 8, info
+    ref, mask, _ = _REFS.of("mixed", simple_scene([*layers.nodes, plain], background=layers.background), 64, 64)
+    assert compare(frame.image, ref, mask)["max_abs_255"] <= 2.0
+
+
+def test_gpu_variants_generate_compute_kernels(renderer_factory):
+    # the 64-bit insertion (NVIDIA) cannot compile here: check the generated kernel as text, for
+    # fragment-only built-ins that would break it and for the extension lines' place
+    from guaca_py.methods import method_class
+    from guaca_py.pipeline.drawlist import build_draw_list
+
+    r = renderer_factory("exact", method="presort_lf_et", method_overrides={"raster": "compute"})
+    caps = dataclasses.replace(r.caps, atomic_int64=True)
+    m = method_class("presort_lf_et")(dict(r.method.settings), caps)
+    assert m.path == "64bit"
+    r.method, saved = m, r.method
+    try:
+        draw = build_draw_list(layered_quads_scene(n_layers=2), r.materials)[0]
+        cr = r.raster.compute
+        cr.renderer.shaders.program = lambda key, stages, smap, label: stages  # capture, do not compile
+        stages = [s["compute_shader"] for s in cr._programs(draw)]
+    finally:
+        r.method = saved
+        del cr.renderer.shaders.program
+        cr._program_sets.clear()  # the captured stages are no programs
+    for template, variables in stages[1:]:
+        src = r.shaders.render(template, **variables)
+        code = re.sub(r"//[^\n]*", "", src)
+        assert src.startswith("#version 450 core\n#extension GL_ARB_gpu_shader_int64 : require\n#extension GL_ARB")
+        assert "GL_NV_shader_atomic_int64" in src
+        assert "uint64_t gua_links[]" in src and "gua_submit_at(pix, z," in src
+        for builtin in ("gl_FragCoord", "gl_HelperInvocation", "gl_PrimitiveID", "gl_FrontFacing", "dFdx"):
+            assert builtin not in code, (template, builtin)
+
+
+def random_triangles(n: int, w: int, area: float, alpha: float, seed: int):
+    """n random triangles of `area` px² (any shape, orientation) at z in [-0.3, 0.3], seen at w x w."""
+    rng = np.random.default_rng(seed)
+    px = 2.0 * 5.0 * np.tan(np.radians(25.0)) / w  # world size of a pixel at z=0
+    centre = rng.uniform(-0.5, 0.5, (n, 1, 2)) * w * px
+    corners = rng.normal(size=(n, 3, 2))
+    u, v = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+    scale = np.sqrt(area / (0.5 * np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0])))
+    xy = centre + (corners - corners.mean(axis=1, keepdims=True)) * scale[:, None, None] * px
+    pos = np.concatenate([xy, rng.uniform(-0.3, 0.3, (n, 3, 1))], axis=2).reshape(-1, 3).astype(np.float32)
+    mesh = MeshData(
+        pos,
+        np.tile(np.float32([0, 0, 1]), (len(pos), 1)),
+        np.zeros((len(pos), 2), np.float32),
+        np.arange(len(pos), dtype=np.uint32).reshape(-1, 3),
+    )
+    return simple_scene([Node("tris", mesh=mesh, material=unlit((0.8, 0.4, 0.2), alpha))])
+
+
+@pytest.mark.parametrize("area", [3.0, 40.0])
+def test_small_random_triangles_match_hardware_coverage(renderer_factory, area):
+    # 2000 random triangles of a few pixels (the hairball's regime), every orientation and shape:
+    # the one-thread path (and, at 40 px², the tile path too) stores the fragments the hardware
+    # rasterizer makes, up to pixel centres within a rounding step of an edge
+    n, w = 2000, 96
+    scene = random_triangles(n, w, area, 0.3, int(area))
+    compute, hardware = both(renderer_factory, "presort_lf")
+    c, h = compute.render(scene, w, w), hardware.render(scene, w, w)
+    sc, sh = c.stats["fragments"]["stored"], h.stats["fragments"]["stored"]
+    assert sh > 0.5 * n * area and abs(sc - sh) <= 0.005 * sh, (sc, sh)
+    st = c.stats["raster"]["compute"]
+    # slivers of any area can have large boxes; at 3 px² nearly all go through the one-thread path,
+    # at 40 px² many through a workgroup each, some through tiles: all three paths ran
+    assert st["large_triangles"] < (0.1 if area < 20 else 0.9) * n and st["large_triangles"] > 0, st
+    assert 0 < st["tiled_triangles"] < st["large_triangles"] and st["tile_jobs"] > 0, st
+    assert differing(c.image, h.image).mean() < 0.05
+
+
+@pytest.mark.parametrize("ballot", [True, False])
+@pytest.mark.parametrize("method", ["presort_lf_et", "presort_lf_merge2_et", "post_sort"])
+def test_stored_equals_the_lists_with_many_fragments_per_thread(renderer_factory, method, ballot):
+    # one compute invocation reserves nodes for its triangle and submits many fragments, some
+    # stored, some refused by early termination: the derived 'stored' (reserved nodes left over
+    # count as unlinked) must still equal the nodes the lists hold, with and without ballots
+    from test_counters import _linked_nodes
+
+    scene = random_triangles(3000, 64, 12.0, 0.6, 11)
+    disable = () if ballot else ("shader_ballot",)
+    r = renderer_factory(
+        "exact", method=method, method_overrides={"raster": "compute", "threshold": 0.9}, disable=disable
+    )
+    fr = r.render(scene, 64, 64).stats["fragments"]
+    assert fr["stored"] == _linked_nodes(r.method), fr
+    if method != "post_sort":
+        assert fr["et_dropped"] + fr["et_culled"] > 0, fr
+
+
+def test_command_line_set_and_info(capsys, tmp_path):
+    import json
+
+    from guaca_py.cli import main
+
+    assert main(["info"]) == 0
+    assert "transparent raster (raster: auto):" in capsys.readouterr().out
+    args = ["render", "--pipeline", "exact", "--width", "48", "--height", "40", "--out", str(tmp_path / "o.png")]
+    assert main([*args, "--set", "raster=compute", "--stats", str(tmp_path / "s.json")]) == 0
+    out = capsys.readouterr().out
+    stats = json.loads((tmp_path / "s.json").read_text())
+    assert stats["raster"]["setting"] == "compute" and stats["raster"]["compute_draws"] > 0
+    assert "transparent raster (compute)" in out and stats["memory"]["raster_vertices"] > 0
+    assert main([*args, "--method", "depth_peeling", "--set", "raster=compute"]) == 2
+    assert "depth_peeling" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(shutil.which("glslangValidator") is None, reason="glslangValidator (glslang-tools) not installed")
+@pytest.mark.parametrize("method", ["presort_lf_et", "presort_lf_merge2_et"])
+def test_gpu_variants_pass_the_reference_compiler(renderer_factory, tmp_path, method):
+    # the NVIDIA variants (64-bit insertion, subgroup ballots) of every kernel, with every built-in
+    # material made transparent, through Khronos' reference compiler (this device cannot
+    # compile them)
+    import subprocess
+
+    from guaca_py.methods import method_class
+    from guaca_py.pipeline.drawlist import build_draw_list
+    from guaca_py.renderer import method_settings
+
+    r = renderer_factory("exact", method=method, method_overrides={"raster": "compute"})
+    extra = {"shader_ballot": True} if hasattr(r.caps, "shader_ballot") else {}
+    caps = dataclasses.replace(r.caps, atomic_int64=True, **extra)
+    m = method_class(method)(method_settings(method, {"raster": "compute"}), caps)
+    cr = r.raster.compute
+    r.method, saved = m, r.method
+    try:
+        cr.renderer.shaders.program = lambda key, stages, smap, label: stages  # capture, do not compile
+        mats = {
+            "pbr": {"alpha": 0.5},
+            "fresnel_glass": {},
+            "lens_fade_out": {},
+            "pbr_textured": {},
+            "unlit": {"alpha": 0.5},
+        }
+        scene = simple_scene([quad_node(k, 0.0, (1, 1, 1), 0.5) for k in mats])
+        for node in scene.nodes:
+            node.material = MaterialInstance(node.name, mats[node.name])
+        draws = build_draw_list(scene, r.materials)
+        stages = [s["compute_shader"] for d in draws for s in cr._programs(d)]
+    finally:
+        r.method = saved
+        del cr.renderer.shaders.program
+        cr._program_sets.clear()  # the captured stages are no programs
+    assert all(d.transparent for d in draws) and len(stages) == 4 * len(mats)
+    for i, (template, variables) in enumerate(stages):
+        path = tmp_path / f"k{i}.comp"
+        path.write_text(r.shaders.render(template, **variables))
+        run = subprocess.run(["glslangValidator", "-S", "comp", str(path)], capture_output=True, text=True)
+        assert run.returncode == 0, (template, run.stdout[-2000:])
+
+
+def test_a_triangles_fragments_get_neighbouring_nodes(renderer_factory):
+    # the one-thread path reserves a run of nodes per triangle: each small triangle's fragments
+    # (neighbouring pixels) sit in consecutive nodes, as a fragment shader warp's allocation puts
+    # them (fragment-by-fragment allocation spread them over the pool and made the H100's list
+    # walks and composite several times slower than with hardware-rasterized lists)
+    scene = random_triangles(1500, 64, 6.0, 0.3, 5)
+    r = renderer_factory("exact", method="presort_lf", method_overrides={"raster": "compute"})
+    frame = r.render(scene, 64, 64)
+    m = r.method
+    links = np.frombuffer(m._links.read(), dtype=np.uint64 if m.link_bytes == 8 else np.uint32).astype(np.int64)
+    links &= 0xFFFFFFFF
+    ties = np.frombuffer(m._nodes.read(), dtype=np.uint32).reshape(-1, 8)[:, 7]
+    nodes = []
+    for n in links[: m._pixels].tolist():
+        while n:
+            nodes.append(n)
+            n = int(links[m._pixels + n])
+    nodes = np.array(nodes)
+    assert len(nodes) == frame.stats["fragments"]["stored"] > 1500
+    prim = ties[nodes] & 0xFFFFF
+    order = np.lexsort((nodes, prim))
+    prim, nodes = prim[order], nodes[order]
+    first = np.r_[True, prim[1:] != prim[:-1]]
+    span = np.maximum.reduceat(nodes, np.flatnonzero(first)) - nodes[first] + 1
+    count = np.diff(np.r_[np.flatnonzero(first), len(nodes)])
+    small = count <= 16  # triangles of the one-thread path
+    assert small.sum() > 1000 and (span[small] == count[small]).mean() > 0.99
