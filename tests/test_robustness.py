@@ -89,7 +89,7 @@ def _deep_scene(levels: int) -> str:
 @pytest.mark.parametrize(
     "text,needles",
     [
-        (_deep_scene(300), ["nested deeper than 100 levels", "flatten"]),
+        (_deep_scene(300), ["nested deeper than 100 levels", "flatten", "'nodes[0].(...99 levels...).children[0]'"]),
         ("nodes:\n  - &a\n    name: loop\n    children: [*a]\n", ["cycle", ":2", "nodes[0].children[0]"]),
         (scene_text(camera="{near: 1.0e-30, far: 100}"), ["far / near", "raise near to at least 5.96e-06"]),
         (scene_text(camera="{near: 1.0e-6, far: 100}"), ["exhausts the 24-bit depth buffer", "collapse"]),
@@ -103,6 +103,13 @@ def test_bad_scene_exits_2_with_location(tmp_path, capsys, text, needles):
     s = write(tmp_path / "s.yaml", text)
     rc, _, err = run([s, "--width", 64, "--height", 64, "--out", tmp_path / "o.png"], capsys)
     expect_error(rc, err, str(s), *needles)
+
+
+def test_nesting_up_to_the_limit_renders(renderer_factory):
+    from guaca_py.scene.loader import load_scene_text
+
+    frame = renderer_factory("exact").render(load_scene_text(_deep_scene(99)), 16, 16)
+    assert frame.stats["draws"] == 1
 
 
 def test_alias_cycle_in_pipeline_passes(tmp_path, capsys):

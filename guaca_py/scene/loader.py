@@ -323,9 +323,13 @@ class _Reader:
         if any(n is at.node for n in open_):
             raise nesting_error(at.node, self.file, at.key, cycle=True)
         if len(open_) >= MAX_SCENE_DEPTH:
-            raise self.error(
-                at,
+            parts = at.key.split(".")
+            key = f"{parts[0]}.(...{len(parts) - 2} levels...).{parts[-1]}"
+            raise ConfigError(
                 f"nodes nested deeper than {MAX_SCENE_DEPTH} levels",
+                self.file,
+                at.line,
+                key,
                 "flatten the hierarchy (bake transforms) or split the scene",
             )
         open_ = open_ + (at.node,)
