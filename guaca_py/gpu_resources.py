@@ -80,6 +80,13 @@ class TextureCache:
                 raise ConfigError(
                     f"texture {path} is not a readable image ({exc})", path, hint="use a PNG or JPEG file"
                 ) from None
+            most = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
+            if max(img.size) > most:
+                raise ConfigError(
+                    f"texture {path} is {img.size[0]}x{img.size[1]}; the device's largest is {most}x{most}",
+                    path,
+                    hint="scale the image down",
+                )
             tex = self.ctx.texture(img.size, 4, img.tobytes())
             tex.build_mipmaps()
         self._tex[name] = tex
