@@ -66,7 +66,8 @@ def _nvx_available_bytes(ext: set) -> int | None:
         if not lib:
             continue
         try:
-            get = ctypes.CDLL(lib).glGetIntegerv
+            get = ctypes.CDLL(lib).glGetIntegerv  # dispatches to the current context (GLVND)
+            get.argtypes, get.restype = [ctypes.c_uint, ctypes.POINTER(ctypes.c_int)], None
             value = ctypes.c_int(0)
             get(ctypes.c_uint(_GPU_MEMORY_INFO_CURRENT_AVAILABLE_VIDMEM_NVX), ctypes.byref(value))
             return value.value * 1024 if value.value > 0 else None
