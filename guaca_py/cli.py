@@ -1,4 +1,4 @@
-"""Command line: `guaca render`, `guaca info`, `guaca methods`."""
+"""Command line: `guaca render`, `guaca view`, `guaca info`, `guaca methods`."""
 
 from __future__ import annotations
 
@@ -21,10 +21,11 @@ def _parse_value(text: str):
 
 def _cmd_render(args) -> int:
     from .renderer import Renderer
-    from .scene.loader import demo_scene, load_scene
+    from .scene.files import load_any
+    from .scene.loader import demo_scene
 
     check_render_args(args)
-    scene = load_scene(args.scene) if args.scene else demo_scene()
+    scene = load_any(args.scene) if args.scene else demo_scene()  # YAML, glTF or a mesh file
     overrides = {}
     for item in args.set or []:
         if "=" not in item:
@@ -78,11 +79,34 @@ def _cmd_render(args) -> int:
     return 0
 
 
+def _cmd_view(args) -> int:
+    from .scene.files import load_any
+    from .scene.loader import demo_scene
+    from .viewer.window import run_viewer
+
+    scene = load_any(args.scene) if args.scene else demo_scene()
+    viewer = run_viewer(
+        scene,
+        width=args.width,
+        height=args.height,
+        pipeline=args.pipeline,
+        method=args.method,
+        view=args.view,
+        headless=args.headless,
+        frames=args.frames,
+        screenshot=args.screenshot,
+    )
+    for path in viewer.screenshots_taken:
+        print(f"screenshot written to {path}")
+    print(f"{viewer.frames} frames; " + " | ".join(viewer.status_lines()[:1]))
+    return 0
+
+
 def _cmd_info(args) -> int:
-    from .context import create_context
+    from .context import probe_capabilities
     from .raster.choice import device_rule
 
-    _, caps = create_context()
+    caps = probe_capabilities()  # released again: the caller's current context stays current
     d = caps.as_dict()
     if args.json:
         print(json.dumps(dict(d, insertion_path=caps.insertion_path, raster_auto=device_rule(caps)), indent=2))
@@ -107,10 +131,10 @@ def _cmd_info(args) -> int:
 
 
 def _cmd_methods(args) -> int:
-    from .context import create_context
+    from .context import probe_capabilities
     from .methods import method_class, method_ids
 
-    _, caps = create_context()
+    caps = probe_capabilities()  # released again: the caller's current context stays current
     rows = []
     for mid in method_ids():
         cls = method_class(mid)
@@ -147,6 +171,17 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--frames", type=int, default=1, help="timed frames; per-pass times are their medians")
     r.add_argument("--materials", action="append", help="extra directory of material descriptions")
     r.set_defaults(fn=_cmd_render)
+    v = sub.add_parser("view", help="look at a scene interactively (orbit/fly camera, method and debug-view keys)")
+    v.add_argument("scene", nargs="?", help="scene YAML, glTF or mesh file (default: built-in demo)")
+    v.add_argument("--pipeline", default="default", help="pipeline YAML or built-in name (default, exact)")
+    v.add_argument("--method", help="transparency method to start with (M / N keys switch)")
+    v.add_argument("--view", default="shaded", choices=("shaded", "depth_complexity", "light_count"))
+    v.add_argument("--width", type=int, default=1024)
+    v.add_argument("--height", type=int, default=768)
+    v.add_argument("--headless", action="store_true", help="no window: render off-screen (scripts, CI)")
+    v.add_argument("--frames", type=int, default=0, help="stop after N frames (0: until closed; headless: 1)")
+    v.add_argument("--screenshot", help="save the last frame's pixels (the first, without --frames) to this PNG")
+    v.set_defaults(fn=_cmd_view)
     i = sub.add_parser("info", help="print the OpenGL device and its capabilities")
     i.add_argument("--json", action="store_true")
     i.set_defaults(fn=_cmd_info)

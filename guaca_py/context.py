@@ -87,3 +87,15 @@ def create_context(ctx=None, disable: tuple[str, ...] = ()):
     elif ctx.version_code < 450:
         raise DeviceError(f"the adopted context is OpenGL {ctx.version_code}; guaca_py needs 4.5")
     return ctx, detect_capabilities(ctx, disable)
+
+
+def probe_capabilities(disable: tuple[str, ...] = ()) -> Capabilities:
+    """Capabilities of a fresh headless context, released again; whatever context was current stays current."""
+    from .host_state import native
+
+    previous = native().current()
+    ctx, caps = create_context(None, disable)
+    ctx.release()
+    if previous is not None:
+        native().make_current(previous)
+    return caps

@@ -1,7 +1,8 @@
-"""GPU-side copies of meshes and textures, uploaded once and shared by all programs."""
+"""GPU-side copies of meshes and textures, shared by content and freed when frames stop using them."""
 
 from __future__ import annotations
 
+import hashlib
 from pathlib import Path
 
 import numpy as np
@@ -9,64 +10,128 @@ import numpy as np
 from .errors import ConfigError
 
 _BUILTIN_TEXELS = {"white": (255, 255, 255, 255), "black": (0, 0, 0, 255), "normal": (128, 128, 255, 255)}
+#: an entry unused for this many frames is freed (a few, so alternating scenes do not thrash)
+KEEP_FRAMES = 3
 
 
-class MeshCache:
-    """Interleaved vertex + index buffers per MeshData, and one VAO per (mesh, program)."""
+def mesh_digest(mesh) -> str:
+    """Content digest of a MeshData, memoised on the object while its arrays stay the same objects.
 
-    def __init__(self, ctx):
+    Replacing an array (or the MeshData) is seen; editing an array in place is not: treat
+    uploaded arrays as immutable and assign new ones instead.
+    """
+    arrays = (mesh.positions, mesh.normals, mesh.texcoords, mesh.indices)
+    ids = tuple(id(a) for a in arrays)
+    memo = mesh.__dict__.get("_gua_digest")
+    if memo is not None and memo[0] == ids:
+        return memo[1]
+    h = hashlib.blake2b(digest_size=16)
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        h.update(memoryview(a).cast("B"))
+    digest = h.hexdigest()
+    mesh.__dict__["_gua_digest"] = (ids, digest)
+    return digest
+
+
+class _FrameCache:
+    """Entries keyed by content; each remembers the last frame that used it."""
+
+    def __init__(self, keep_frames: int = KEEP_FRAMES):
+        self.keep_frames = keep_frames
+        self.frame = 0
+        self._last_used: dict = {}
+
+    def _touch(self, key) -> None:
+        self._last_used[key] = self.frame
+
+    def end_frame(self) -> int:
+        """Free what the last `keep_frames` frames did not use; returns how many entries were freed."""
+        stale = [k for k, f in self._last_used.items() if f <= self.frame - self.keep_frames]
+        for k in stale:
+            self._free(k)
+            del self._last_used[k]
+        self.frame += 1
+        return len(stale)
+
+    def _free(self, key) -> None:
+        raise NotImplementedError
+
+    def __len__(self) -> int:
+        return len(self._last_used)
+
+    def release(self) -> None:
+        """Free every entry."""
+        for k in list(self._last_used):
+            self._free(k)
+        self._last_used.clear()
+
+
+class MeshCache(_FrameCache):
+    """Interleaved vertex + index buffers per mesh content, and one VAO per (mesh, program)."""
+
+    def __init__(self, ctx, keep_frames: int = KEEP_FRAMES):
+        super().__init__(keep_frames)
         self.ctx = ctx
-        self._buffers: dict[int, tuple] = {}
-        self._vaos: dict[tuple[int, int], object] = {}
+        self._buffers: dict[str, tuple] = {}
+        self._vaos: dict[str, dict[int, object]] = {}
+        self.uploads = 0  # meshes uploaded so far (tests and stats: work proportional to change)
 
     def buffers(self, mesh) -> tuple:
-        """(vertex buffer of interleaved position, normal, texcoord float32s; uint32 index buffer)."""
-        if id(mesh) not in self._buffers:
+        """(vertex buffer of interleaved position, normal, texcoord float32s; uint32 index buffer), by content."""
+        key = mesh_digest(mesh)
+        self._touch(key)
+        if key not in self._buffers:
             inter = np.hstack([mesh.positions, mesh.normals, mesh.texcoords]).astype(np.float32)
-            self._buffers[id(mesh)] = (
-                mesh,
+            self._buffers[key] = (
                 self.ctx.buffer(inter.tobytes()),
                 self.ctx.buffer(np.ascontiguousarray(mesh.indices, dtype=np.uint32).tobytes()),
             )
-        return self._buffers[id(mesh)][1:]
+            self.uploads += 1
+        return self._buffers[key]
 
     def vao(self, mesh, prog):
         """VAO drawing `mesh` with `prog` (attributes the program does not use are skipped)."""
-        key = (id(mesh), prog.glo)
-        if key not in self._vaos:
-            vbo, ibo = self.buffers(mesh)
-            self._vaos[key] = self.ctx.vertex_array(
+        vbo, ibo = self.buffers(mesh)
+        vaos = self._vaos.setdefault(mesh_digest(mesh), {})
+        vao = vaos.get(prog.glo)
+        if vao is None:
+            vao = vaos[prog.glo] = self.ctx.vertex_array(
                 prog,
                 [(vbo, "3f 3f 2f", "in_position", "in_normal", "in_texcoord")],
                 ibo,
                 index_element_size=4,
                 skip_errors=True,
             )
-        return self._vaos[key]
+        return vao
 
-    def release(self) -> None:
-        """Free all buffers and VAOs."""
-        for v in self._vaos.values():
+    def _free(self, key) -> None:
+        for v in self._vaos.pop(key, {}).values():
             v.release()
-        for _, vbo, ibo in self._buffers.values():
-            vbo.release()
-            ibo.release()
-        self._vaos.clear()
-        self._buffers.clear()
+        for b in self._buffers.pop(key, ()):
+            b.release()
 
 
-class TextureCache:
-    """RGBA8 textures with mipmaps loaded by path (or the built-in names white/black/normal)."""
+class TextureCache(_FrameCache):
+    """RGBA8 textures with mipmaps by path, in-memory TextureImage (by content) or built-in name."""
 
-    def __init__(self, ctx):
+    def __init__(self, ctx, keep_frames: int = KEEP_FRAMES):
+        super().__init__(keep_frames)
         self.ctx = ctx
         self._tex: dict[str, object] = {}
 
-    def get(self, name: str, base: Path | None = None):
-        """The texture for a sampler value."""
-        if name in self._tex:
-            return self._tex[name]
-        if name in _BUILTIN_TEXELS:
+    def get(self, name, base: Path | None = None):
+        """The texture for a sampler value: a path, white/black/normal, or a TextureImage."""
+        key = getattr(name, "digest", None) or str(name)
+        self._touch(key)
+        if key in self._tex:
+            return self._tex[key]
+        if hasattr(name, "pixels"):
+            img = np.ascontiguousarray(name.pixels[::-1])  # row 0 at the top -> GL's bottom-up rows
+            tex = self.ctx.texture(name.size, 4, img.tobytes())
+            tex.build_mipmaps()
+        elif name in _BUILTIN_TEXELS:
             tex = self.ctx.texture((1, 1), 4, bytes(_BUILTIN_TEXELS[name]))
         else:
             from PIL import Image
@@ -89,11 +154,10 @@ class TextureCache:
                 )
             tex = self.ctx.texture(img.size, 4, img.tobytes())
             tex.build_mipmaps()
-        self._tex[name] = tex
+        self._tex[key] = tex
         return tex
 
-    def release(self) -> None:
-        """Free all textures."""
-        for t in self._tex.values():
-            t.release()
-        self._tex.clear()
+    def _free(self, key) -> None:
+        tex = self._tex.pop(key, None)
+        if tex is not None:
+            tex.release()

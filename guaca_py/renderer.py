@@ -9,16 +9,19 @@ import moderngl
 import numpy as np
 
 from .context import create_context
-from .errors import ConfigError, UnsupportedMethodError
+from .errors import ConfigError, GuacaError, UnsupportedMethodError
 from .gpu_resources import MeshCache, TextureCache
+from .host_state import ContextGuard, native, on_context
 from .limits import check_resolution
 from .materials import MaterialRegistry
 from .methods import method_class, method_ids
 from .passes import PASS_TYPES
 from .pipeline.config import PipelineConfig, load_pipeline
+from .pipeline.draw_cache import DrawCache
 from .pipeline.drawlist import build_draw_list
 from .pipeline.frame import FrameResult, FrameState, mat_bytes
 from .pipeline.settings import resolve_settings
+from .present import Presenter
 from .raster import RasterRouter
 from .scene.graph import Scene
 from .shaders import ShaderLibrary, SourceMap
@@ -38,7 +41,12 @@ def method_settings(mid: str, base: dict, overrides: dict | None = None, source:
 
 
 class Renderer:
-    """Renders Scenes through a pipeline config. Reuse one Renderer across frames."""
+    """Renders Scenes through a pipeline config. Reuse one Renderer across frames.
+
+    With `ctx=None` it makes its own headless context (freed by release()); with a host's
+    moderngl context it draws there, and every public call makes that context current and
+    gives the host back the GL state it found (guaca_py/host_state.py lists what that covers).
+    """
 
     moderngl = moderngl
 
@@ -52,14 +60,39 @@ class Renderer:
         material_paths: list[str | Path] | None = None,
         template_paths: list[str | Path] | None = None,
         disable: tuple[str, ...] = (),
+        restore_host_state: bool = True,
     ):
-        self.ctx, self.caps = create_context(ctx, disable)
+        previous = native().current()  # creating a context makes it current: the host's comes back
+        self.owns_context = ctx is None
+        if self.owns_context:
+            self.ctx, self.caps = create_context(None, disable)  # a new context is current
+            self._gl = ContextGuard(self.ctx, restore_state=False)
+        else:
+            # a host that sets all of its state before each of its draws may skip the snapshot (~1 ms a call)
+            self._gl = ContextGuard(ctx, restore_state=restore_host_state)
+            with self._gl():  # capabilities (and moderngl's cached ctx.info) must come from this context
+                self.ctx, self.caps = create_context(ctx, disable)
+        try:
+            with self._gl():
+                self._build(pipeline, method, method_overrides, material_paths, template_paths)
+        except BaseException:
+            if self.owns_context:
+                self.ctx.release()
+            raise
+        finally:
+            if previous is not None and self.owns_context:
+                native().make_current(previous)
+
+    def _build(self, pipeline, method, method_overrides, material_paths, template_paths) -> None:
         self.config = load_pipeline(pipeline)
         self.shaders = ShaderLibrary(self.ctx, template_paths)
         self.materials = MaterialRegistry(material_paths)
         self.meshes = MeshCache(self.ctx)
         self.textures = TextureCache(self.ctx)
         self._fullscreen_vaos: dict[int, object] = {}
+        self.presenter = Presenter(self)
+        self.draw_cache = DrawCache()
+        self.frame_serial = 0  # frames rendered; a FrameResult's texture is valid while this is unchanged
         self._queries: dict[tuple[str, int], object] = {}
         self._frame_index = 0
         self._previous_timers: dict | None = None
@@ -78,6 +111,7 @@ class Renderer:
                 )
             available |= set(p.writes)
 
+    @on_context
     def set_method(self, mid: str, overrides: dict | None = None) -> None:
         """Switch the transparency method (settings shared with the config carry over)."""
         if mid not in method_ids():
@@ -163,10 +197,14 @@ class Renderer:
 
     def draw_list(self, frame, draws, transparent: bool, uniforms: dict | None = None, per_program=None) -> None:
         """Draw `draws` with their (opaque or transparent) programs and the given extra uniforms."""
-        last = None
+        last = last_values = None
+        programs: dict[int, object] = {}  # per material description, for this call (the method's state is fixed)
         for d in draws:
-            prog = self.geometry_program(d, transparent)
-            if prog is not last:
+            prog = programs.get(id(d.material))
+            if prog is None:
+                prog = programs[id(d.material)] = self.geometry_program(d, transparent)
+            switched = prog is not last
+            if switched:
                 frame.set_frame_uniforms(prog)
                 for k, v in (uniforms or {}).items():
                     if k in prog:
@@ -174,12 +212,14 @@ class Renderer:
                 if per_program is not None:
                     per_program(prog)
                 last = prog
-            prog["gua_model_matrix"].write(mat_bytes(d.world))
+            prog["gua_model_matrix"].write(d.model_bytes or mat_bytes(d.world))
             if "gua_normal_matrix" in prog:
-                prog["gua_normal_matrix"].write(mat_bytes(np.linalg.inv(d.world).T))
+                prog["gua_normal_matrix"].write(d.normal_bytes or mat_bytes(np.linalg.inv(d.world).T))
             if "gua_draw_index" in prog:
                 prog["gua_draw_index"] = d.index
-            self._set_material_uniforms(prog, d)
+            if switched or d.values is not last_values:  # the same instance as the draw before is all set
+                self._set_material_uniforms(prog, d)
+                last_values = d.values
             self.meshes.vao(d.mesh, prog).render(moderngl.TRIANGLES)
 
     def fullscreen(self, prog) -> None:
@@ -212,17 +252,36 @@ class Renderer:
         ms = (time.perf_counter() - t0) * 1e3
         return (lambda: ms), "wall"
 
+    @on_context
     def render(
-        self, scene: Scene, width: int | None = None, height: int | None = None, *, read_back: bool = True
+        self,
+        scene: Scene,
+        width: int | None = None,
+        height: int | None = None,
+        *,
+        target=None,
+        viewport: tuple[int, int, int, int] | None = None,
+        read_back: bool = True,
+        stats: bool = True,
     ) -> FrameResult:
-        """Render one frame of `scene`; the image is read back unless `read_back` is False."""
+        """Render one frame of `scene`; optionally draw it into `target`; read it back unless `read_back=False`.
+
+        `target` is a moderngl Framebuffer (e.g. the host's screen) or Texture the frame is
+        drawn into (scaled to `viewport`, default the whole target) without leaving the GPU.
+        With `read_back=False` nothing is copied to the CPU: `FrameResult.texture` holds the
+        frame until the next render and `FrameResult.image` reads it on first access.
+        `stats=False` skips per-pass timing (no timer queries or GPU syncs); the counters the
+        transparency method gathers are still reported. With `stats=True` and `read_back=False`
+        on a GPU, the per-pass times are the previous frame's (`stats["passes_of"]`), so reading
+        them never waits for this frame.
+        """
         w, h = check_resolution(
             self.caps.limits,
             self.config.resolution[0] if width is None else width,
             self.config.resolution[1] if height is None else height,
         )
         cam = scene.camera
-        draws = build_draw_list(scene, self.materials)
+        draws = build_draw_list(scene, self.materials, self.draw_cache)
         frame = FrameState(self, scene, w, h, draws, cam.view_matrix(), cam.projection_matrix(w / h))
         frame.late_counters = not read_back
         frame.stats.update(
@@ -242,7 +301,11 @@ class Renderer:
         for p in self.passes:
             for _attempt in range(1 + 16):
                 warned = len(frame.stats.get("warnings", []))
-                timer, kind = self._timed(p.name, lambda p=p: p.execute(frame))
+                if stats:
+                    timer, kind = self._timed(p.name, lambda p=p: p.execute(frame))
+                else:
+                    p.execute(frame)
+                    timer, kind = (lambda: 0.0), "off"
                 if not frame.rerender:
                     break
                 frame.rerender = False
@@ -250,12 +313,14 @@ class Renderer:
                 del frame.stats.get("warnings", [])[warned:]  # that attempt's overflow is repaired
             timers[p.name] = timer
             frame.stats["timer"] = kind
-        if read_back or kind != "gpu" or self._previous_timers is None:
+        if not stats:
+            frame.stats["passes"] = {name: {"ms": 0.0} for name in timers}
+        elif read_back or kind != "gpu" or self._previous_timers is None:
             frame.stats["passes"] = {name: {"ms": round(t(), 4)} for name, t in timers.items()}
         else:  # the previous frame's queries: finished or nearly, so reading them does not stall this one
             frame.stats["passes"] = {name: {"ms": round(t(), 4)} for name, t in self._previous_timers.items()}
             frame.stats["passes_of"] = "previous frame"
-        self._previous_timers = None if read_back else timers
+        self._previous_timers = None if read_back or not stats else timers
         self._frame_index += 1
         frame.stats.setdefault("memory", {}).update(self.method.memory() if frame.transparent_draws else {})
         declared = self.method.geometry_passes
@@ -267,21 +332,39 @@ class Renderer:
                 "a pass took longer than the 32-bit GPU timer result can hold (4.29 s); its time is clipped"
             )
         frame.stats["frame_wall_ms"] = round((time.perf_counter() - t0) * 1e3, 3)
-        if not read_back:
-            return FrameResult(None, frame.stats, texture=frame.resources["color"])
-        return self._read_back(frame)
-
-    def _read_back(self, frame) -> FrameResult:
+        self.meshes.end_frame()
+        self.textures.end_frame()
+        self.frame_serial += 1
         tex = frame.resources["color"]
-        if tex.dtype == "f4":
-            lin = np.frombuffer(tex.read(), dtype=np.float32).reshape(frame.height, frame.width, 4)[::-1, :, :3]
-            img = np.clip(np.rint(np.clip(lin, 0.0, 1.0) * 255.0), 0, 255).astype(np.uint8)
-            return FrameResult(np.ascontiguousarray(img), frame.stats, np.ascontiguousarray(lin))
-        img = np.frombuffer(tex.read(), dtype=np.uint8).reshape(frame.height, frame.width, 4)[::-1, :, :3]
-        return FrameResult(np.ascontiguousarray(img), frame.stats)
+        if target is not None:
+            self.presenter.draw(tex, target, viewport)
+        result = FrameResult(None, frame.stats, texture=tex, reader=self._reader(tex, self.frame_serial))
+        if read_back:
+            result.read()
+        return result
 
-    def release(self) -> None:
-        """Free every GPU resource the renderer holds."""
+    def _reader(self, tex, serial: int):
+        """A function reading `tex` (the frame numbered `serial`) back as (image, linear or None)."""
+
+        @on_context
+        def read(self) -> tuple[np.ndarray, np.ndarray | None]:
+            if self.frame_serial != serial or tex.glo <= 0:
+                raise GuacaError(
+                    "this frame's texture was reused by a later render (or the renderer was released); "
+                    "read frame.image before the next render, or render with read_back=True"
+                )
+            h, w = tex.height, tex.width
+            if tex.dtype == "f4":
+                lin = np.frombuffer(tex.read(), dtype=np.float32).reshape(h, w, 4)[::-1, :, :3]
+                img = np.clip(np.rint(np.clip(lin, 0.0, 1.0) * 255.0), 0, 255).astype(np.uint8)
+                return np.ascontiguousarray(img), np.ascontiguousarray(lin)
+            img = np.frombuffer(tex.read(), dtype=np.uint8).reshape(h, w, 4)[::-1, :, :3]
+            return np.ascontiguousarray(img), None
+
+        return lambda: read(self)
+
+    @on_context
+    def _release_gpu(self) -> None:
         for p in self.passes:
             p.release()
         self.method.release()
@@ -289,3 +372,17 @@ class Renderer:
         self.meshes.release()
         self.textures.release()
         self._queries.clear()  # moderngl has no release for queries: reusing them bounds them at two per pass
+        for vao in self._fullscreen_vaos.values():
+            vao.release()
+        self._fullscreen_vaos.clear()
+        self.shaders.release()
+
+    def release(self) -> None:
+        """Free every GPU resource the renderer holds, and its context when it made its own."""
+        if getattr(self, "released", False):
+            return
+        self._release_gpu()
+        self.frame_serial += 1  # outstanding FrameResults can no longer read their texture
+        self.released = True
+        if self.owns_context:
+            self.ctx.release()

@@ -17,6 +17,20 @@ def gl_context():
     return ctx
 
 
+@pytest.fixture(autouse=True)
+def _shared_context_current(request):
+    """Make the shared context current before each test that uses it.
+
+    Renderers make their own context current for each call and then restore whatever was
+    current before; tests that read a renderer's buffers or textures directly rely on the
+    shared context being current, which a test that created another context (a benchmark
+    run, a host application) would otherwise change for every later test.
+    """
+    if "gl_context" in request.fixturenames or "renderer_factory" in request.fixturenames:
+        request.getfixturevalue("gl_context").__enter__()  # moderngl: make current (no __exit__: keep it so)
+    yield
+
+
 @pytest.fixture(scope="session")
 def renderer_factory(gl_context):
     """Build Renderers on the shared context."""

@@ -99,7 +99,7 @@ def test_frame_loop_reads_counters_a_frame_late(renderer_factory):
     deep = layered_quads_scene(n_layers=16, order="shuffled", seed=6, with_opaque=False)
     r = renderer_factory("exact", method="presort_lf")
     first = r.render(small, SIZE, SIZE, read_back=False)  # nothing staged yet: read now
-    assert "fragments_of" not in first.stats and first.image is None and first.texture is not None
+    assert "fragments_of" not in first.stats and not first.is_read and first.texture is not None
     want = r.render(small, SIZE, SIZE).stats["fragments"]["stored"]
     r.render(small, SIZE, SIZE, read_back=False)
     late = r.render(deep, SIZE, SIZE, read_back=False)

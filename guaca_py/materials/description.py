@@ -132,7 +132,7 @@ def check_value(typ: str, value, file, line, key):
     """Validate one uniform value against its type; returns the normalized value."""
     size = UNIFORM_SIZES[typ]
     if typ == "sampler2D":
-        if not isinstance(value, str):
+        if not isinstance(value, str) and not hasattr(value, "pixels"):  # path/name or scene.texture.TextureImage
             raise ConfigError(f"sampler2D needs a texture path string, got {value!r}", file, line, key)
         return value
     if typ in ("float", "int"):

@@ -22,20 +22,39 @@ class Draw:
     values: dict
     world: np.ndarray
     transparent: bool
+    model_bytes: bytes | None = None  # world and inverse-transpose as GL bytes, when a DrawCache made them
+    normal_bytes: bytes | None = None
 
 
 MAX_WORLD = 1.0e7  # float32 positions step by 1 at 1.7e7; llvmpipe's clipper drops triangles past ~1e8
 
 
-def check_world_extent(node, world: np.ndarray) -> None:
-    """Reject a mesh whose world-space corners leave the range float32 vertices and clipping handle."""
-    lo, hi = node.mesh.bounds()
-    corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-    reach = float(np.max(np.abs(corners @ world.T)[:, :3]))
-    if not np.isfinite(reach) or reach > MAX_WORLD:
+def _mesh_reach(mesh) -> float:
+    """Largest absolute object-space coordinate, computed once per mesh (meshes are immutable once loaded)."""
+    reach = mesh.__dict__.get("_guaca_reach")
+    if reach is None:
+        reach = mesh.__dict__["_guaca_reach"] = float(np.abs(mesh.positions).max()) if len(mesh.positions) else 0.0
+    return reach
+
+
+def check_world_extents(placed: list[tuple]) -> None:
+    """Reject a mesh whose world-space extent leaves the range float32 vertices and clipping handle.
+
+    `placed` holds (node, world matrix) pairs. A bound, not the exact box: per axis |translation|
+    plus the row sum of |M| times the mesh's reach, for all draws in one array operation (it runs
+    every frame, also on the cached path).
+    """
+    if not placed:
+        return
+    worlds = np.array([w for _, w in placed])
+    reach = np.array([_mesh_reach(n.mesh) for n, _ in placed])
+    bound = (np.abs(worlds[:, :3, 3]) + np.abs(worlds[:, :3, :3]).sum(axis=2) * reach[:, None]).max(axis=1)
+    bad = np.flatnonzero(~(bound <= MAX_WORLD))  # NaN fails too
+    if len(bad):
+        node = placed[int(bad[0])][0]
         file, line = getattr(node, "source", (None, None))
         raise ConfigError(
-            f"node '{node.name}' reaches {reach:.3g} units from the origin, beyond {MAX_WORLD:.0e}: float32 "
+            f"node '{node.name}' reaches {bound[bad[0]]:.3g} units from the origin, beyond {MAX_WORLD:.0e}: float32 "
             "positions and the rasterizer's clipper cannot hold it (the object would vanish)",
             file,
             line,
@@ -44,17 +63,60 @@ def check_world_extent(node, world: np.ndarray) -> None:
         )
 
 
-def build_draw_list(scene: Scene, materials: MaterialRegistry) -> list[Draw]:
-    """Serialize the scene graph; materials and uniform values are checked here (errors cite the scene)."""
+def build_draw_list(scene: Scene, materials: MaterialRegistry, cache=None) -> list[Draw]:
+    """Serialize the scene graph; materials and uniform values are checked here (errors cite the scene).
+
+    With a DrawCache (pipeline/draw_cache.py), matrices and resolved materials of unchanged
+    nodes are reused from earlier frames.
+    """
+    if cache is not None:
+        return _build_cached(scene, materials, cache)
     draws: list[Draw] = []
+    placed: list[tuple] = []
     for node, world in scene.walk():
         if node.mesh is None:
             continue
         inst = node.material
         desc_name = inst.description if inst else "pbr"
         where = getattr(inst, "source", (scene.source, None)) if inst else (scene.source, None)
-        check_world_extent(node, world)
         desc = materials.get(desc_name, where)
         values = desc.resolve_values(inst.uniforms if inst else {}, where)
         draws.append(Draw(len(draws), node.name, node.mesh, desc, values, world, desc.is_transparent(values)))
+        placed.append((node, world))
+    check_world_extents(placed)
+    return draws
+
+
+def _build_cached(scene: Scene, materials: MaterialRegistry, cache) -> list[Draw]:
+    from .draw_cache import material_key
+
+    draws: list[Draw] = []
+
+    def resolver(inst):
+        def resolve():
+            desc_name = inst.description if inst else "pbr"
+            where = getattr(inst, "source", (scene.source, None)) if inst else (scene.source, None)
+            desc = materials.get(desc_name, where)
+            values = desc.resolve_values(inst.uniforms if inst else {}, where)
+            return desc, values, desc.is_transparent(values)
+
+        return resolve
+
+    def visit(node, parent_key, parent_world):
+        key, world, model_bytes, normal_bytes = cache.world(parent_key, parent_world, node.transform)
+        if node.mesh is not None:
+            placed.append((node, world))
+            inst = node.material
+            desc, values, transparent = cache.material(material_key(inst, scene.source), resolver(inst))
+            draws.append(
+                Draw(len(draws), node.name, node.mesh, desc, values, world, transparent, model_bytes, normal_bytes)
+            )
+        for child in node.children:
+            visit(child, key, world)
+
+    placed: list[tuple] = []
+    for root in scene.nodes:
+        visit(root, None, None)
+    check_world_extents(placed)
+    cache.end_frame()
     return draws

@@ -100,14 +100,47 @@ class FrameState:
         self.renderer.draw_list(self, [d for d in self.draws if not d.transparent], transparent=False)
 
 
-@dataclass
 class FrameResult:
-    """A finished frame: display image (row 0 at the top), optional linear color, statistics."""
+    """A finished frame: display image (row 0 at the top), optional linear color, statistics.
 
-    image: np.ndarray | None
-    stats: dict
-    linear: np.ndarray | None = None
-    texture: object | None = None  # the output on the GPU (valid until the renderer's next frame)
+    A frame rendered with `read_back=False` keeps its colour on the GPU (`texture`, valid until
+    the renderer's next frame); `image` and `linear` read it back on first access.
+    """
+
+    def __init__(
+        self,
+        image: np.ndarray | None,
+        stats: dict,
+        linear: np.ndarray | None = None,
+        *,
+        texture=None,
+        reader: Callable | None = None,
+    ):
+        self._image, self._linear, self.stats, self.texture, self._reader = image, linear, stats, texture, reader
+
+    @property
+    def is_read(self) -> bool:
+        """Whether the image is on the CPU (a `read_back=False` frame stays on the GPU until asked for)."""
+        return self._image is not None
+
+    def read(self) -> FrameResult:
+        """Copy the frame to the CPU now (no-op once read)."""
+        if self._image is None and self._reader is not None:
+            self._image, self._linear = self._reader()
+            self._reader = None
+        return self
+
+    @property
+    def image(self) -> np.ndarray:
+        """(H, W, 3) uint8, row 0 at the top; read back from the GPU on first access."""
+        self.read()
+        return self._image
+
+    @property
+    def linear(self) -> np.ndarray | None:
+        """(H, W, 3) float32 linear colour when the pipeline ends in a float target, else None."""
+        self.read()
+        return self._linear
 
     def save(self, path: str | Path) -> Path:
         """Write the image (format from the suffix, e.g. .png) through a temporary file and a rename."""

@@ -43,8 +43,10 @@ Meshes
     ``{primitive: KIND, ...params}`` builds a procedural mesh: ``quad`` (size [w, h], XY plane
     facing +Z), ``plane`` (size [w, d], subdivisions; XZ plane facing +Y), ``box``
     (size [x, y, z]), ``sphere`` (radius, segments, rings), ``cylinder`` (radius, height,
-    segments, capped; along Y). ``{file: PATH}`` loads OBJ, PLY, STL, GLB or glTF through
-    trimesh. Identical meshes are loaded once and shared between nodes.
+    segments, capped; along Y). ``{file: PATH}`` loads OBJ, PLY or STL through trimesh.
+    Identical meshes are loaded once and shared between nodes. ``{file: x.glb}`` (or .gltf)
+    keeps the file's node hierarchy as the node's first children, with the file's materials
+    (scene/gltf.py); a ``material`` on the node replaces them all.
 
 Materials
     ``{description: NAME, uniforms: {...}}`` or just ``NAME``. Names and uniforms are checked
@@ -337,12 +339,19 @@ class _Reader:
         node = Node(name=self.string(f["name"]) if "name" in f else at.key)
         if "transform" in f:
             node.transform = self.transform(f["transform"])
-        if "mesh" in f:
+        gltf = self.gltf(f["mesh"]) if "mesh" in f else None
+        if "mesh" in f and gltf is None:
             node.mesh = self.mesh(f["mesh"])
         if "material" in f:
             node.material = self.material(f["material"])
+        if gltf is not None:  # the file's own hierarchy becomes this node's first children
+            node.children = gltf.nodes
+            for sub, _ in node.walk():
+                if sub.mesh is not None and node.material is not None:
+                    sub.material = node.material  # a material given in the scene overrides the file's
+            node.material = None
         if "children" in f:
-            node.children = [self.node(c, open_) for c in self.items(f["children"], "child nodes")]
+            node.children = node.children + [self.node(c, open_) for c in self.items(f["children"], "child nodes")]
         node.source = (self.file, at.line)  # for renderer errors about this node
         return node
 
@@ -372,6 +381,18 @@ class _Reader:
                 )
             t.scale = scale
         return t
+
+    def gltf(self, at: _At):
+        """GltfContent for mesh: {file: *.glb|*.gltf}, else None (other meshes are read by mesh())."""
+        from .gltf import GLTF_SUFFIXES, load_gltf
+
+        if not isinstance(at.node, yaml.MappingNode):
+            return None
+        entries = {k.value: v for k, v in at.node.value if isinstance(k, yaml.ScalarNode)}
+        if set(entries) != {"file"} or not str(entries["file"].value).lower().endswith(GLTF_SUFFIXES):
+            return None
+        f = self.mapping(at, ("file",), "a file mesh")
+        return load_gltf(self.path(f["file"]), self.file, f["file"].line, f["file"].key)
 
     def mesh(self, at: _At) -> MeshData:
         """mesh: {primitive: kind, params...} or {file: path}."""

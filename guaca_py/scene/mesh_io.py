@@ -111,14 +111,19 @@ def load_mesh_file(
             "point clouds and line drawings cannot be rendered; export triangles",
         )
 
+    return trimesh_to_meshdata(loaded, p.stem, fail, str(p))
+
+
+def trimesh_to_meshdata(loaded, name: str, fail, what: str) -> MeshData:
+    """Validate one trimesh.Trimesh and convert it to MeshData; `fail(reason, hint)` builds the error."""
     positions = np.asarray(loaded.vertices, dtype=np.float64)
     faces = np.asarray(loaded.faces, dtype=np.int64).reshape(-1, 3)
     if len(faces) == 0 or len(positions) == 0:
-        raise fail(f"{p} has no triangles", "export the mesh with faces, not just vertices")
+        raise fail(f"{what} has no triangles", "export the mesh with faces, not just vertices")
     if not np.all(np.isfinite(positions)):
-        raise fail(f"{p} has non-finite vertex positions (NaN or inf)", "repair the mesh in a modelling tool")
+        raise fail(f"{what} has non-finite vertex positions (NaN or inf)", "repair the mesh in a modelling tool")
     if faces.min() < 0 or faces.max() >= len(positions):
-        raise fail(f"{p} has face indices outside its vertex list", "repair the mesh in a modelling tool")
+        raise fail(f"{what} has face indices outside its vertex list", "repair the mesh in a modelling tool")
 
     normals = _file_normals(loaded)
     if normals is None:
@@ -128,5 +133,5 @@ def load_mesh_file(
         normals=np.ascontiguousarray(_unitize(normals), dtype=np.float32),
         texcoords=np.ascontiguousarray(_texcoords(loaded, len(positions))),
         indices=np.ascontiguousarray(faces, dtype=np.uint32),
-        name=p.stem,
+        name=name,
     )

@@ -115,6 +115,12 @@ class ShaderLibrary:
         self._programs[key] = prog
         return prog
 
+    def release(self) -> None:
+        """Free every compiled program."""
+        for prog in self._programs.values():
+            prog.release()
+        self._programs.clear()
+
     def compute(self, template: str, **variables):
         """Compile (once per template+variables) a compute shader."""
         key = (template, tuple(sorted((k, str(v)) for k, v in variables.items())))
