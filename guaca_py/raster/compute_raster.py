@@ -4,7 +4,9 @@ After Laine & Karras, "High-Performance Software Rasterization on GPUs" (HPG 201
 what transparent fragments need (no depth buffer, no ordering: the A-buffer sorts). Per draw:
 
 1. vertex   one thread per vertex: the vertex stage with the material's displacement methods;
-2. setup    one thread per triangle: setup; a triangle whose candidate box holds at most
+1b. order   a bucket sort of the triangles in the frustum by view depth: front to back for
+            methods with early termination, back to front for the others (order.comp.j2);
+2. setup    one thread per triangle, in that order: setup; a triangle whose candidate box holds at most
             SMALL_AREA pixels is rasterized by that thread, a larger one is queued;
 3. bin      one workgroup per queued triangle: rasterizes it when its box holds at most
             MEDIUM_AREA pixels, else makes a (triangle, tile) job per TILE² tile it may cover;
@@ -12,7 +14,7 @@ what transparent fragments need (no depth buffer, no ordering: the A-buffer sort
 
 Every covered pixel runs the material's visibility methods and the method's gua_submit_at()
 (raster/fragment_host.glsl.j2): one material source, two hosts. Stages 3 and 4 are dispatched
-indirectly from counts the GPU writes (raster/args.comp.j2); the CPU reads the frame's totals
+indirectly from counts the GPU writes (raster/args.comp.j2, order.comp.j2); the CPU reads the frame's totals
 once, after the pass, through a copy. The queue and the job list are sized to the frame, grow
 to the measured need on overflow (the frame is rendered again, at most MAX_REGROW times) and
 report what they hold and drop.
@@ -21,6 +23,7 @@ report what they hold and drop.
 from __future__ import annotations
 
 import math
+import weakref
 
 import numpy as np
 
@@ -49,6 +52,11 @@ STATE_WORDS = (
     "jobs_dropped",
     "tiled",
     "tiled_total",
+    "visible",
+    "visible_total",
+    "setup_x",
+    "setup_y",
+    "setup_z",
 )
 TILE = 8  # tile edge in pixels of the large-triangle path (one 64-thread workgroup per job, as L&K's fine raster)
 SMALL_AREA = 128  # candidate boxes up to this many pixels are rasterized by one thread
@@ -56,8 +64,24 @@ MEDIUM_AREA = 1024  # larger boxes up to this many pixels by one 64-thread workg
 DEPTH_UNIT = 7  # texture unit of the G-buffer depth (units 8+ hold material textures)
 VERTEX_RECORD_BYTES = 48  # clip position, world position + u, normal + v
 MAX_REGROW = 2  # re-renders one frame may take to grow the queue or the job list
+BUCKETS = 1024  # view-depth buckets of the triangle order (a multiple of 64: order.comp.j2's scan)
 _GROUP = 64  # threads per workgroup of the vertex and setup stages
 _MAX_GROUPS_X = 65535  # the GL minimum of GL_MAX_COMPUTE_WORK_GROUP_COUNT; grids wrap into y
+
+
+_bounds_cache: dict[int, tuple] = {}  # id(mesh) -> (weak mesh, (min, max))
+
+
+def _bounds(mesh) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh's object-space bounds, computed once per mesh."""
+    hit = _bounds_cache.get(id(mesh))
+    if hit is None or hit[0]() is not mesh:
+        key = id(mesh)
+        hit = _bounds_cache[key] = (
+            weakref.ref(mesh, lambda _ref, key=key: _bounds_cache.pop(key, None)),
+            tuple(np.asarray(b, dtype=np.float64) for b in mesh.bounds()),
+        )
+    return hit[1]
 
 
 def _grid(items: int, group: int = _GROUP) -> tuple[int, int, int]:
@@ -72,7 +96,9 @@ class ComputeRasterizer:
         self.renderer = renderer
         self.ctx = renderer.ctx
         self._state = self._readback = self._verts = self._large = self._jobs = None
+        self._buckets = self._order = None
         self.vertex_capacity = 0
+        self.order_capacity = 0  # triangles of the largest draw (the order list)
         self.large_capacity = 0  # queued large triangles per draw
         self.job_capacity = 0  # (triangle, tile) jobs per draw
         self._want: dict[str, int] = {}
@@ -97,6 +123,7 @@ class ComputeRasterizer:
             "raster_small_area": self.small_area,
             "raster_medium_area": self.medium_area,
             "raster_depth_unit": DEPTH_UNIT,
+            "raster_buckets": BUCKETS,
         }
 
     def _compute_material(self, mat):
@@ -189,10 +216,12 @@ class ComputeRasterizer:
         if self._state is None:
             self._state = ctx.buffer(reserve=len(STATE_WORDS) * 4)
             self._readback = ctx.buffer(reserve=len(STATE_WORDS) * 4)
+            self._buckets = ctx.buffer(reserve=BUCKETS * 4)
         if vertices > self.vertex_capacity:
             self._release(self._verts)
             self.vertex_capacity = vertices
             self._verts = ctx.buffer(reserve=vertices * VERTEX_RECORD_BYTES)
+        self._fit_order(triangles)
         if large != self.large_capacity:
             self._release(self._large)
             self.large_capacity, self._large = large, ctx.buffer(reserve=large * 4)
@@ -206,6 +235,35 @@ class ComputeRasterizer:
         args.run(1)
         ctx.memory_barrier()
         self._triangles = 0
+
+    def _fit_order(self, triangles: int) -> None:
+        """An order list for draws of up to `triangles` triangles."""
+        if triangles > self.order_capacity:
+            self._release(self._order)
+            self.order_capacity = triangles
+            self._order = self.ctx.buffer(reserve=max(1, triangles) * 4)
+
+    def _depth_range(self, frame, draw) -> tuple[float, float]:
+        """Nearest and farthest view depth of the draw's bounding box corners (clip w), for the order."""
+        lo, hi = _bounds(draw.mesh)
+        corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        w = corners @ (frame.projection @ frame.view @ draw.world)[3]
+        return float(max(w.min(), 0.0)), float(max(w.max(), 0.0))
+
+    def _order_pass(self, frame, draw, order_kernel, depth_range: tuple[float, float]) -> None:
+        """Bucket-sort the draw's triangles in the frustum by view depth (see order.comp.j2)."""
+        ctx = self.ctx
+        self._fit_order(draw.mesh.triangle_count)
+        self._buckets.bind_to_storage_buffer(14)
+        self._order.bind_to_storage_buffer(15)
+        early_termination = bool(getattr(self.renderer.method, "early_termination", False))
+        order_kernel["gua_tri_count"] = draw.mesh.triangle_count
+        order_kernel["gua_depth_range"] = depth_range
+        order_kernel["gua_back_to_front"] = not early_termination
+        for mode, items in ((0, BUCKETS), (1, draw.mesh.triangle_count), (2, _GROUP), (3, draw.mesh.triangle_count)):
+            order_kernel["gua_order_mode"] = mode
+            order_kernel.run(*_grid(items))
+            ctx.memory_barrier()
 
     @staticmethod
     def _release(buf) -> None:
@@ -222,7 +280,13 @@ class ComputeRasterizer:
             self._fresh, self._frame = False, frame
         ctx, r = self.ctx, self.renderer
         frame.resources["gbuffer"]["depth"].use(location=DEPTH_UNIT)
-        args = self._kernel("raster/args.comp.j2")
+        args, order_kernel = self._kernel("raster/args.comp.j2"), self._kernel("raster/order.comp.j2")
+        # draws run one after the other: take them in depth order too (see _order_pass)
+        ranges = {d.index: self._depth_range(frame, d) for d in draws}
+        if getattr(r.method, "early_termination", False):
+            draws = sorted(draws, key=lambda d: ranges[d.index][0])
+        else:
+            draws = sorted(draws, key=lambda d: -ranges[d.index][1])
         for d in draws:
             if len(d.mesh.positions) > self.vertex_capacity:  # a later call of the pass with a larger mesh
                 self._release(self._verts)
@@ -244,6 +308,7 @@ class ComputeRasterizer:
             r._set_material_uniforms(vert, d)
             vert.run(*_grid(len(d.mesh.positions)))
             ctx.memory_barrier()
+            self._order_pass(frame, d, order_kernel, ranges[d.index])
             for prog in (setup, binner, fine):
                 frame.set_frame_uniforms(prog)
                 for k, v in uniforms.items():
@@ -254,9 +319,8 @@ class ComputeRasterizer:
                 r._set_material_uniforms(prog, d)
                 if per_program is not None:
                     per_program(prog)
-            setup["gua_tri_count"] = d.mesh.triangle_count
             setup["gua_large_capacity"] = self.large_capacity
-            setup.run(*_grid(d.mesh.triangle_count))
+            setup.run_indirect(self._state, STATE_WORDS.index("setup_x") * 4)
             ctx.memory_barrier()
             args["gua_args_mode"], args["gua_capacity"] = 1, self.large_capacity
             args.run(1)
@@ -281,6 +345,7 @@ class ComputeRasterizer:
         frame.stats.setdefault("raster", {})["compute"] = {
             "triangles": self._triangles,
             "large_triangles": c["large_total"],
+            "visible_triangles": c["visible_total"],
             "tiled_triangles": c["tiled_total"],
             "tile_jobs": c["jobs_total"],
             "large_dropped": c["large_dropped"],
@@ -309,6 +374,7 @@ class ComputeRasterizer:
         """Bytes of the rasterizer's buffers, allocated and used by the busiest draw."""
         return {
             "raster_vertices": self.vertex_capacity * VERTEX_RECORD_BYTES,
+            "raster_order": self.order_capacity * 4 + BUCKETS * 4,
             "raster_large_queue": self.large_capacity * 4,
             "raster_large_queue_used": min(large_peak, self.large_capacity) * 4,
             "raster_tile_jobs": self.job_capacity * 8,
@@ -317,8 +383,9 @@ class ComputeRasterizer:
 
     def release(self) -> None:
         """Free all buffers."""
-        for b in (self._state, self._readback, self._verts, self._large, self._jobs):
+        for b in (self._state, self._readback, self._verts, self._large, self._jobs, self._buckets, self._order):
             self._release(b)
         self._state = self._readback = self._verts = self._large = self._jobs = None
-        self.vertex_capacity = self.large_capacity = self.job_capacity = 0
+        self._buckets = self._order = None
+        self.vertex_capacity = self.large_capacity = self.job_capacity = self.order_capacity = 0
         self._fresh, self._frame = True, None
