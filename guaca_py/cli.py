@@ -6,13 +6,17 @@ import argparse
 import json
 import sys
 
-from .errors import GuacaError
+from .args_check import check_render_args
+from .errors import ConfigError, GuacaError
 
 
 def _parse_value(text: str):
     import yaml
 
-    return yaml.safe_load(text)
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"cannot read {text!r}: {exc}", key="--set", hint="e.g. --set budget_mb=64") from None
 
 
 def _cmd_render(args) -> int:
@@ -20,6 +24,7 @@ def _cmd_render(args) -> int:
     from .scene.files import load_any
     from .scene.loader import demo_scene
 
+    check_render_args(args)
     scene = load_any(args.scene) if args.scene else demo_scene()  # YAML, glTF or a mesh file
     overrides = {}
     for item in args.set or []:
@@ -35,8 +40,8 @@ def _cmd_render(args) -> int:
         m = measure(
             renderer,
             scene,
-            args.width or renderer.config.resolution[0],
-            args.height or renderer.config.resolution[1],
+            renderer.config.resolution[0] if args.width is None else args.width,
+            renderer.config.resolution[1] if args.height is None else args.height,
             args.warmup,
             args.frames,
         )
@@ -111,6 +116,12 @@ def _cmd_info(args) -> int:
     print(f"OpenGL:    {caps.version}")
     for k in ("atomic_int64", "fragment_interlock", "conservative_raster", "gpu_timers"):
         print(f"{k + ':':<22}{'yes' if d[k] else 'no'}")
+    if caps.limits is not None:
+        lim = caps.limits
+        free = f"{lim.available_bytes / 2**20:.0f} MiB" if lim.available_bytes else "not reported"
+        print(f"storage per buffer:   {lim.describe()}")
+        print(f"  reported SSBO block {lim.reported_block_bytes / 2**20:.0f} MiB (advisory), free memory {free}")
+        print(f"largest frame:        {lim.max_framebuffer[0]}x{lim.max_framebuffer[1]}")
     print(
         f"A-buffer insertion path: {caps.insertion_path} "
         f"({'64-bit atomicMax on (depth, pointer)' if caps.insertion_path == '64bit' else '32-bit CAS on immutable nodes'})"
@@ -189,6 +200,15 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except FileNotFoundError as exc:
         print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except Exception as exc:
+        import moderngl
+
+        # a resource the driver refused (incomplete framebuffer, out of memory) is a device limit
+        if not isinstance(exc, moderngl.Error):
+            raise
+        hint = "lower the resolution or the scene's size"
+        print(f"error: the OpenGL device refused the request: {exc} ({hint})", file=sys.stderr)
         return 2
 
 

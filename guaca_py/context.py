@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 from .errors import DeviceError
+from .limits import DeviceLimits, query_limits
 
 _INSTALL_HINT = (
     "guaca_py needs OpenGL 4.5 core through EGL. On Debian/Ubuntu install Mesa's EGL and "
@@ -26,7 +27,13 @@ class Capabilities:
     gpu_timers: bool  # timer queries measure real GPU time (not on software rasterizers)
     software: bool  # llvmpipe / softpipe / swrast
     framebuffer_fetch: bool = False  # EXT_shader_framebuffer_fetch: ordered read-modify-write of colour targets
+    limits: DeviceLimits | None = None  # buffer and render-target sizes (guaca_py/limits.py)
     shader_ballot: bool = False  # ARB_shader_ballot + ARB_gpu_shader_int64: per-subgroup aggregation of atomics
+
+    def __post_init__(self):
+        # Capabilities(**caps.as_dict()) round-trips: as_dict turns the limits into a plain dict
+        if isinstance(self.limits, dict):
+            object.__setattr__(self, "limits", DeviceLimits(**self.limits))
 
     def as_dict(self) -> dict:
         """Plain dict for JSON output."""
@@ -61,6 +68,7 @@ def detect_capabilities(ctx, disable: tuple[str, ...] = ()) -> Capabilities:
         vendor=info.get("GL_VENDOR", "?"),
         version=info.get("GL_VERSION", "?"),
         software=software,
+        limits=query_limits(ctx, software),
         **caps,
     )
 

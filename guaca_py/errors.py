@@ -33,6 +33,10 @@ class ConfigError(GuacaError):
         super().__init__(msg)
 
 
+class LimitError(ConfigError):
+    """A request exceeds a device or format limit; names the option or key, the limit and what to do."""
+
+
 class ShaderCompileError(GuacaError):
     """GLSL failed to compile; the message maps compiler lines back to material/template files."""
 

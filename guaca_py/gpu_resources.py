@@ -139,7 +139,19 @@ class TextureCache(_FrameCache):
             path = Path(name) if Path(name).is_absolute() or base is None else base / name
             if not path.is_file():
                 raise ConfigError(f"texture not found: {path}", hint="paths in scenes resolve against the scene file")
-            img = Image.open(path).convert("RGBA").transpose(Image.Transpose.FLIP_TOP_BOTTOM)
+            try:
+                img = Image.open(path).convert("RGBA").transpose(Image.Transpose.FLIP_TOP_BOTTOM)
+            except (OSError, ValueError, Image.DecompressionBombError) as exc:
+                raise ConfigError(
+                    f"texture {path} is not a readable image ({exc})", path, hint="use a PNG or JPEG file"
+                ) from None
+            most = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
+            if max(img.size) > most:
+                raise ConfigError(
+                    f"texture {path} is {img.size[0]}x{img.size[1]}; the device's largest is {most}x{most}",
+                    path,
+                    hint="scale the image down",
+                )
             tex = self.ctx.texture(img.size, 4, img.tobytes())
             tex.build_mipmaps()
         self._tex[key] = tex

@@ -12,6 +12,7 @@ from .context import create_context
 from .errors import ConfigError, GuacaError, UnsupportedMethodError
 from .gpu_resources import MeshCache, TextureCache
 from .host_state import ContextGuard, native, on_context
+from .limits import check_resolution
 from .materials import MaterialRegistry
 from .methods import method_class, method_ids
 from .passes import PASS_TYPES
@@ -274,7 +275,11 @@ class Renderer:
         on a GPU, the per-pass times are the previous frame's (`stats["passes_of"]`), so reading
         them never waits for this frame.
         """
-        w, h = width or self.config.resolution[0], height or self.config.resolution[1]
+        w, h = check_resolution(
+            self.caps.limits,
+            self.config.resolution[0] if width is None else width,
+            self.config.resolution[1] if height is None else height,
+        )
         cam = scene.camera
         draws = build_draw_list(scene, self.materials, self.draw_cache)
         frame = FrameState(self, scene, w, h, draws, cam.view_matrix(), cam.projection_matrix(w / h))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -37,17 +38,57 @@ def key_name(path: tuple) -> str:
     return out
 
 
-def _convert(node: yaml.Node, path: tuple, lines: dict) -> Any:
+MAX_NESTING = 64  # config files are shallow; deeper means an alias cycle or a generated mistake
+
+
+def compose(text: str, file: str) -> yaml.Node | None:
+    """yaml.compose with room for MAX-nested documents; deeper ones are a ConfigError, not a RecursionError.
+
+    PyYAML's composer recurses several frames per level, so a 300-level scene exhausts Python's
+    default limit before the loaders can report the nesting at its line.
+    """
+    old = sys.getrecursionlimit()
+    sys.setrecursionlimit(max(old, 20000))
+    try:
+        return yaml.compose(text, Loader=yaml.SafeLoader)
+    except RecursionError:
+        raise ConfigError(
+            "nested too deeply for the YAML parser", file, hint=f"keep nesting under {MAX_NESTING} levels"
+        ) from None
+    finally:
+        sys.setrecursionlimit(old)
+
+
+def nesting_error(node: yaml.Node, file: str, key: str, cycle: bool) -> ConfigError:
+    """The error for an alias that contains itself, or for nesting past MAX_NESTING."""
+    if cycle:
+        return ConfigError(
+            "an alias refers to a node that contains it (a cycle)",
+            file,
+            node.start_mark.line + 1,
+            key or None,
+            "YAML aliases (*name) may only repeat finished nodes",
+        )
+    return ConfigError(
+        f"nested deeper than {MAX_NESTING} levels", file, node.start_mark.line + 1, key or None, "flatten the file"
+    )
+
+
+def _convert(node: yaml.Node, path: tuple, lines: dict, file: str = "<yaml>", open_: tuple = ()) -> Any:
     lines.setdefault(path, node.start_mark.line + 1)
+    if isinstance(node, (yaml.MappingNode, yaml.SequenceNode)):
+        if any(n is node for n in open_) or len(open_) >= MAX_NESTING:
+            raise nesting_error(node, file, key_name(path), any(n is node for n in open_))
+        open_ = open_ + (node,)
     if isinstance(node, yaml.MappingNode):
         out = {}
         for k, v in node.value:
             key = k.value
             lines[path + (key,)] = k.start_mark.line + 1
-            out[key] = _convert(v, path + (key,), lines)
+            out[key] = _convert(v, path + (key,), lines, file, open_)
         return out
     if isinstance(node, yaml.SequenceNode):
-        return [_convert(v, path + (i,), lines) for i, v in enumerate(node.value)]
+        return [_convert(v, path + (i,), lines, file, open_) for i, v in enumerate(node.value)]
     if node.tag == "tag:yaml.org,2002:str":
         return node.value
     if node.tag == "tag:yaml.org,2002:bool" and node.value.lower() not in ("true", "false"):
@@ -58,7 +99,7 @@ def _convert(node: yaml.Node, path: tuple, lines: dict) -> Any:
 def load_yaml_text(text: str, file: str) -> Located:
     """Parse YAML text; syntax errors become ConfigError with the line of the problem."""
     try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
+        root = compose(text, file)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = mark.line + 1 if mark is not None else None
@@ -66,7 +107,7 @@ def load_yaml_text(text: str, file: str) -> Located:
             f"invalid YAML: {getattr(exc, 'problem', exc)}", file, line, hint="check indentation and brackets"
         ) from exc
     lines: dict[tuple, int] = {}
-    data = _convert(root, (), lines) if root is not None else {}
+    data = _convert(root, (), lines, file) if root is not None else {}
     return Located(data, lines, file)
 
 
@@ -75,4 +116,12 @@ def load_yaml_file(path: str | Path) -> Located:
     p = Path(path)
     if not p.is_file():
         raise ConfigError("file not found", p, hint="check the path")
-    return load_yaml_text(p.read_text(encoding="utf-8"), str(p))
+    data = p.read_bytes()
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise ConfigError(
+            f"not UTF-8 text (byte 0x{data[exc.start]:02x})", p, line, hint="save the file as UTF-8"
+        ) from None
+    return load_yaml_text(text, str(p))

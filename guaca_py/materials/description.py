@@ -14,10 +14,14 @@ from ..errors import ConfigError
 #: uniform type -> number of floats (sampler2D holds a texture path instead)
 UNIFORM_SIZES = {"float": 1, "int": 1, "vec2": 2, "vec3": 3, "vec4": 4, "mat4": 16, "sampler2D": 0}
 STAGES = ("displacement", "visibility")
-_TOP_KEYS = {"name", "description", "uniforms", "displacement", "visibility"}
+_TOP_KEYS = {"name", "description", "uniforms", "displacement", "visibility", "transparent"}
 _ALPHA_WRITE = re.compile(r"\bgua_alpha\s*([-+*/]?=)(?!=)\s*([^;]*);")
 _IDENT = re.compile(r"^[A-Za-z_]\w*$")
 _LITERAL_ONE = re.compile(r"^\(?\s*1(\.0*)?f?\s*\)?$")
+# gua_alpha handed to a function (an `inout`/`out` parameter may write it) or touched by ++/--
+_ALPHA_UNSURE = re.compile(r"[(,]\s*gua_alpha\s*[,)]|\+\+\s*gua_alpha|gua_alpha\s*(\+\+|--)|--\s*gua_alpha")
+# the preprocessor can write gua_alpha under another name
+_PREPROCESSOR = re.compile(r"^\s*#\s*(define|if|ifdef|ifndef|include)\b", re.M)
 #: built-in texture names usable as sampler defaults
 BUILTIN_TEXTURES = ("white", "black", "normal")
 
@@ -55,11 +59,15 @@ class MaterialDescription:
     methods: dict[str, list[Method]]
     path: Path
     doc: str = ""
+    transparent: bool | None = None  # stated in the file; None: decided from the code
     _alpha_writes: list[tuple[str, str]] = field(default_factory=list, repr=False)
+    _unsure: bool = field(default=False, repr=False)
 
     def __post_init__(self):
         for m in self.methods.get("displacement", []) + self.methods.get("visibility", []):
-            self._alpha_writes += _ALPHA_WRITE.findall(_strip_comments(m.source))
+            code = _strip_comments(m.source)
+            self._alpha_writes += _ALPHA_WRITE.findall(code)
+            self._unsure = self._unsure or bool(_ALPHA_UNSURE.search(code) or _PREPROCESSOR.search(code))
 
     def is_transparent(self, values: dict) -> bool:
         """Whether an instance with these uniform values can produce alpha < 1.
@@ -67,7 +75,14 @@ class MaterialDescription:
         Opaque when no method writes gua_alpha, when every write assigns the literal 1,
         or when every write assigns a float uniform whose instance value is 1 (constant
         alpha materials such as `pbr` with alpha 1). Anything else is decided per fragment.
+        A file's `"transparent": true|false` overrides this; code the classifier cannot read
+        for certain (gua_alpha passed to a function, preprocessor directives) keeps the
+        A-buffer path: slower where it was not needed, never wrong.
         """
+        if self.transparent is not None:
+            return self.transparent
+        if self._unsure:
+            return True
         for op, rhs in self._alpha_writes:
             rhs = rhs.strip()
             if op == "=" and _LITERAL_ONE.match(rhs):
@@ -100,6 +115,14 @@ class MaterialDescription:
         return out
 
 
+def _numeric_text(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def _strip_comments(src: str) -> str:
     src = re.sub(r"/\*.*?\*/", "", src, flags=re.S)
     return re.sub(r"//[^\n]*", "", src)
@@ -114,9 +137,12 @@ def check_value(typ: str, value, file, line, key):
         return value
     if typ in ("float", "int"):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(
-                f"expected {typ}, got {type(value).__name__} {value!r}", file, line, key, "write a plain number"
-            )
+            hint = "write a plain number"
+            if isinstance(value, str) and _numeric_text(value):
+                hint = (
+                    f"YAML reads {value!r} as text: write it with a dot and a signed exponent, e.g. {float(value):.1e}"
+                )
+            raise ConfigError(f"expected {typ}, got {type(value).__name__} {value!r}", file, line, key, hint)
         if typ == "int" and not float(value).is_integer():
             raise ConfigError(f"expected int, got {value!r}", file, line, key)
         return int(value) if typ == "int" else float(value)
@@ -124,6 +150,27 @@ def check_value(typ: str, value, file, line, key):
     if arr is None or arr.size != size or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in arr):
         raise ConfigError(f"expected {typ} ({size} numbers), got {value!r}", file, line, key)
     return [float(v) for v in arr]
+
+
+def _read_text(p: Path, cite: Path, line: int | None, key: str | None) -> str:
+    """A UTF-8 text file; other bytes are an error citing the byte's line."""
+    data = p.read_bytes()
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        bad_line = data.count(b"\n", 0, exc.start) + 1
+        raise ConfigError(
+            f"{p.name} is not UTF-8 text (byte 0x{data[exc.start]:02x} on line {bad_line})",
+            cite,
+            line if cite != p else bad_line,
+            key,
+            "save the file as UTF-8",
+        ) from None
+
+
+def _key_line(text: str, key: str) -> int | None:
+    pos = text.find(f'"{key}"')
+    return _line_of(text, pos) if pos >= 0 else None
 
 
 def _line_of(text: str, pos: int) -> int:
@@ -157,10 +204,11 @@ def _method(entry, stage: str, i: int, path: Path, text: str, search_from: int) 
         src_path = (path.parent / entry["file"]).resolve()
         if not src_path.is_file():
             raise ConfigError(f"method source file not found: {src_path}", path, _line_of(text, pos), key)
-        source, file, first = src_path.read_text(encoding="utf-8"), src_path, 1
+        source, file, first = _read_text(src_path, path, _line_of(text, pos), key), src_path, 1
     else:
         src = entry["source"]
-        source = "\n".join(src) if isinstance(src, list) else src
+        lines_ok = isinstance(src, list) and all(isinstance(x, str) for x in src)
+        source = "\n".join(src) if lines_ok else src
         if not isinstance(source, str):
             raise ConfigError("'source' must be a string or a list of lines", path, _line_of(text, pos), key)
         spos = text.find('"source"', pos)
@@ -184,7 +232,7 @@ def load_material(path: str | Path) -> MaterialDescription:
     path = Path(path)
     if not path.is_file():
         raise ConfigError("material file not found", path)
-    text = path.read_text(encoding="utf-8")
+    text = _read_text(path, path, None, None)
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
@@ -202,8 +250,28 @@ def load_material(path: str | Path) -> MaterialDescription:
             f"known keys: {', '.join(sorted(_TOP_KEYS))}",
         )
     name = data.get("name", path.stem)
+    if not isinstance(name, str) or not name:
+        raise ConfigError(f"'name' must be a non-empty string, got {name!r}", path, _key_line(text, "name"), "name")
+    transparent = data.get("transparent")
+    if transparent is not None and not isinstance(transparent, bool):
+        raise ConfigError(
+            f"'transparent' must be true or false, got {transparent!r}",
+            path,
+            _key_line(text, "transparent"),
+            "transparent",
+            "leave it out to let the material's code decide",
+        )
+    raw_uniforms = data.get("uniforms") or {}
+    if not isinstance(raw_uniforms, dict):
+        raise ConfigError(
+            f"'uniforms' must be an object of name: {{type, default}}, got {type(raw_uniforms).__name__}",
+            path,
+            _key_line(text, "uniforms"),
+            "uniforms",
+            'e.g. "uniforms": {"alpha": {"type": "float", "default": 0.5}}',
+        )
     uniforms: dict[str, UniformSpec] = {}
-    for uname, spec in (data.get("uniforms") or {}).items():
+    for uname, spec in raw_uniforms.items():
         line = _line_of(text, max(text.find(f'"{uname}"'), 0))
         if not _IDENT.match(uname) or uname.startswith("gua_"):
             raise ConfigError(
@@ -234,4 +302,4 @@ def load_material(path: str | Path) -> MaterialDescription:
         for i, entry in enumerate(entries):
             m, pos = _method(entry, stage, i, path, text, pos)
             methods[stage].append(m)
-    return MaterialDescription(name, uniforms, methods, path, data.get("description", ""))
+    return MaterialDescription(name, uniforms, methods, path, data.get("description", ""), transparent)

@@ -9,6 +9,7 @@ approx/kbuffer_insert.glsl.j2). Fragments beyond k are merged into the farthest 
 from __future__ import annotations
 
 from ..gpu_counters import CounterBlock
+from ..limits import require_bytes
 from ..pipeline.settings import Setting
 from .approximate import fill_uint_buffer
 from .base import LOCK_SETTING, TransparencyMethod, resolve_lock
@@ -58,6 +59,12 @@ class KBuffer(TransparencyMethod):
     def prepare(self, frame) -> None:
         """Allocate (on resolution change) and reset locks, counts and counters."""
         if self._heads is None or self._pixels != frame.pixel_count:
+            require_bytes(
+                self.caps.limits,
+                frame.pixel_count * self.k * SLOT_BYTES,
+                "transparency.k",
+                f"lower k (now {self.k}) or the resolution",
+            )
             self.release()
             self._pixels = frame.pixel_count
             self._heads = frame.ctx.buffer(reserve=self._pixels * HEAD_BYTES)

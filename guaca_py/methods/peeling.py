@@ -233,13 +233,21 @@ class PeelingMethod(TransparencyMethod):
             self._dummy_fbo(frame).use()
             for i, n in enumerate(slots):
                 self._tex[n].bind_to_image(i, read=True, write=True)
-        ctx.disable(mgl.DEPTH_TEST | mgl.BLEND | mgl.CULL_FACE)
+        ctx.disable(mgl.DEPTH_TEST | mgl.CULL_FACE)
+        # With blending and depth test both off, llvmpipe takes a draw that covers a whole 64x64
+        # tile for opaque and discards the tile's earlier draws, their image and buffer writes
+        # included (multi-layer peeling lost every quad but the last above 384x384); blending as
+        # (ONE, ZERO) writes the same colour and keeps every draw.
+        ctx.enable(mgl.BLEND)
+        ctx.blend_func = (mgl.ONE, mgl.ZERO)
         all_uniforms = {**self._common_uniforms(frame), **(uniforms or {})}
         self._phase = phase
         try:
             frame.draw_transparent(all_uniforms, per_program=per_program, order=draws)
         finally:
             self._phase = "composite"
+            ctx.disable(mgl.BLEND)
+            ctx.blend_func = mgl.DEFAULT_BLENDING
         ctx.memory_barrier()
         self.passes += 1
 

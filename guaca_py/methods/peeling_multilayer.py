@@ -16,7 +16,8 @@ pool_mb 'auto' the pool then grows to the pass's need, so the next pass cannot o
 
 from __future__ import annotations
 
-from ..pipeline.settings import Setting
+from ..limits import require_bytes
+from ..pipeline.settings import Setting, positive
 from .peeling import PeelingMethod
 
 NODE_BYTES = 32  # 8 payload words
@@ -47,8 +48,10 @@ class MultiLayerDepthPeeling(PeelingMethod):
         "pool_mb": Setting(
             (str, int, float), "auto", "node pool in MB, or 'auto' (grows to a pass's need)", check=_pool
         ),
-        "max_pool_mb": Setting((int, float), 512, "largest pool 'auto' may grow to"),
-        "max_steps": Setting((int,), 1024, "bound on swap attempts per insertion (guards against livelock)"),
+        "max_pool_mb": Setting((int, float), 512, "largest pool 'auto' may grow to", check=positive),
+        "max_steps": Setting(
+            (int,), 1024, "bound on swap attempts per insertion (guards against livelock)", check=positive
+        ),
     }
 
     def __init__(self, settings, caps):
@@ -69,7 +72,9 @@ class MultiLayerDepthPeeling(PeelingMethod):
 
     # ------------------------------------------------------------------ storage
     def _pool_nodes(self, mb: float) -> int:
-        return max(2, int(mb * 1024 * 1024) // NODE_BYTES)
+        """Nodes in `mb` megabytes, within the device's storage rule (guaca_py/limits.py)."""
+        cap = self.caps.limits.elements(NODE_BYTES) if self.caps.limits else 2**31 // NODE_BYTES
+        return max(2, min(int(mb * 1024 * 1024) // NODE_BYTES, cap, 2**32 - 1))
 
     def _alloc_pool(self, frame, capacity: int) -> None:
         ctx = frame.ctx
@@ -78,6 +83,12 @@ class MultiLayerDepthPeeling(PeelingMethod):
             for b in (self._slots, self._dropped):
                 if b is not None:
                     b.release()
+            require_bytes(
+                self.caps.limits,
+                pixels * self.layers * 4,
+                "transparency.layers_per_pass",
+                f"lower layers_per_pass (now {self.layers}) or the resolution",
+            )
             self._pixels = pixels
             self._slots = ctx.buffer(reserve=pixels * self.layers * 4)
             self._slots.clear()
@@ -92,7 +103,7 @@ class MultiLayerDepthPeeling(PeelingMethod):
         """Per-pixel state and the node pool (one node per pixel and layer to start with)."""
         pool = self.settings["pool_mb"]
         if pool == "auto":
-            start = max(1024, frame.pixel_count * self.layers + 1)
+            start = min(max(1024, frame.pixel_count * self.layers + 1), self._pool_nodes(self.settings["max_pool_mb"]))
             cap = self.capacity if self._pixels == frame.pixel_count and self.capacity else start
             if self._used_nodes and self._used_nodes + 1 < cap // 4:
                 # the last frame used under a quarter: hold what the scene needs (a deeper frame
@@ -148,19 +159,22 @@ class MultiLayerDepthPeeling(PeelingMethod):
             if left == 0:
                 break
             stalled = stalled + 1 if c["peeled"] == 0 else 0
-            if c["overflow"]:
+            if c["overflow"] and can_grow:
                 # Grow so that the next pass cannot overflow: it allocates at most one node per fragment it sees.
                 want = max(requested, c["in_range"]) + 2
-                if can_grow:
-                    self._alloc_pool(frame, min(max_nodes, int(want * 1.1)))
-                    s["pool_grown"] += 1
-                elif stalled >= 3:
-                    s["truncated"] = left
-                    self.warn(
-                        f"{self.id}: the node pool ({self.capacity - 1} nodes) is too small to make progress; "
-                        f"{left} fragments not peeled (raise transparency.pool_mb or use 'auto')"
-                    )
-                    break
+                self._alloc_pool(frame, min(max_nodes, int(want * 1.1)))
+                s["pool_grown"] += 1
+            elif stalled >= 3:
+                # three passes without a peeled fragment: stop (counted) rather than loop for ever
+                s["truncated"] = left
+                why = (
+                    f"the node pool ({self.capacity - 1} nodes) is too small to make progress "
+                    "(raise transparency.pool_mb or use 'auto')"
+                    if c["overflow"]
+                    else f"every insertion hit max_steps ({self.settings['max_steps']}; raise it)"
+                )
+                self.warn(f"{self.id}: {why}; {left} fragments not peeled")
+                break
         if s["pool_overflow"] and self.settings["pool_mb"] != "auto":
             self.warn(
                 f"{self.id}: node pool overflowed ({s['pool_overflow']} nodes lacking, "

@@ -5,7 +5,8 @@ from __future__ import annotations
 import math
 
 from ..gpu_counters import CounterBlock
-from ..pipeline.settings import Setting
+from ..limits import pool_node_limit
+from ..pipeline.settings import Setting, non_negative, positive
 from .base import TransparencyMethod
 
 NODE_PAYLOAD_BYTES = 32  # depth + 7 payload words, see abuffer/layout.glsl.j2
@@ -35,8 +36,12 @@ class PreSortLF(TransparencyMethod):
         "budget_mb": Setting(
             (str, int, float), "auto", "node pool size in MB, or 'auto' (grow to the need)", check=_budget
         ),
-        "max_regrow": Setting((int,), 2, "re-renders allowed to grow an 'auto' pool after overflow"),
-        "max_steps": Setting((int,), 4096, "bound on list steps per insertion (guards against livelock)"),
+        "max_regrow": Setting(
+            (int,), 4, "re-renders allowed to grow an 'auto' pool after overflow", check=non_negative
+        ),
+        "max_steps": Setting(
+            (int,), 4096, "bound on list steps per insertion (guards against livelock)", check=positive
+        ),
     }
 
     def __init__(self, settings, caps):
@@ -58,7 +63,23 @@ class PreSortLF(TransparencyMethod):
             return max(2, int(self.settings["budget_mb"] * 1024 * 1024) // self.node_bytes)
         return max(1024, pixels)  # one node per pixel; grown to the measured need on overflow
 
+    def max_capacity(self, pixels: int) -> int:
+        """Most nodes the device's storage rule allows for this frame size (guaca_py/limits.py)."""
+        return pool_node_limit(self.caps.limits, pixels * (1 + self.extra_slots), self.link_bytes, NODE_PAYLOAD_BYTES)
+
+    def _overflow_hint(self) -> str:
+        """What to do about an overflow, from what bounded the pool."""
+        if self.capacity >= self.max_capacity(self._pixels):
+            et = "" if self.early_termination else ", or use a method with early termination (presort_lf_et)"
+            return (
+                f"the pool is at the device's limit ({self.caps.limits.describe()}); render fewer layers or pixels{et}"
+            )
+        if self.settings["budget_mb"] != "auto":
+            return "raise transparency.budget_mb or use 'auto'"
+        return "raise transparency.max_regrow"
+
     def _alloc(self, ctx, pixels: int, capacity: int, size) -> None:
+        capacity = min(capacity, self.max_capacity(pixels))
         if self._links is None or self._pixels != pixels or self.capacity != capacity:
             self.release()
             self._pixels, self.capacity = pixels, capacity
@@ -148,15 +169,16 @@ class PreSortLF(TransparencyMethod):
         if c["overflow"]:
             frame.stats.setdefault("warnings", []).append(
                 f"A-buffer overflow{' in the previous frame' if late else ''}: {c['overflow']} fragments dropped "
-                f"(pool {capacity - 1} nodes, frame asked for {requested}); raise transparency.budget_mb or use 'auto'"
+                f"(pool {capacity - 1} nodes, frame asked for {requested}); {self._overflow_hint()}"
             )
         if c["guard"]:
             frame.stats.setdefault("warnings", []).append(f"{c['guard']} insertions hit max_steps and were dropped")
         auto = self.settings["budget_mb"] == "auto"
+        grow = self.capacity < self.max_capacity(self._pixels)
         if c["overflow"] and auto and late is not None:
             self.capacity_request(int(requested * 1.15) + 1024)  # for the next frame
             return False
-        if c["overflow"] and auto and self.regrown < self.settings["max_regrow"]:
+        if c["overflow"] and auto and self.regrown < self.settings["max_regrow"] and grow:
             self.regrown += 1
             self.capacity_request(int(requested * 1.15) + 1024)
             return True
@@ -180,8 +202,18 @@ class PreSortLF(TransparencyMethod):
         return self._counts
 
     def capacity_request(self, nodes: int) -> None:
-        """Resize the pool at the next prepare() (the current frame keeps reading this one)."""
-        self._want = nodes
+        """Resize the pool at the next prepare() (the current frame keeps reading this one), within the device's limit.
+
+        With early termination an overflowed frame asks for more than it needs (dropped fragments
+        saturate nothing, so the fragments behind them ask for nodes too; measured on a 300-layer
+        front-to-back stack: 1.2M asked, 45k needed), so growth is bounded to 4x per re-render there
+        except on the last re-render max_regrow allows, which takes the whole request so the frame
+        is complete; without early termination the request is exact.
+        """
+        last = self.regrown >= self.settings["max_regrow"]
+        if self.early_termination and nodes > self.capacity and not last:
+            nodes = min(nodes, 4 * max(self.capacity, 1024))
+        self._want = min(nodes, self.max_capacity(self._pixels))
 
     # ------------------------------------------------------------------ shaders
     def fragment_template(self) -> str:

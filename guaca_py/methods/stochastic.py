@@ -13,6 +13,7 @@ the revealage prod(1 - alpha); the composite scales the estimated color by the e
 
 from __future__ import annotations
 
+from ..limits import require_bytes
 from ..pipeline.settings import Setting
 from .approximate import ForwardBlendMethod, fill_uint_buffer
 
@@ -53,6 +54,12 @@ class StochasticTransparency(ForwardBlendMethod):
         super().prepare(frame)
         words = frame.pixel_count * self.samples
         if self._depth is None or self._depth_pixels != frame.pixel_count:
+            require_bytes(
+                self.caps.limits,
+                words * 4,
+                "transparency.samples",
+                f"lower samples (now {self.samples}) or the resolution",
+            )
             if self._depth is not None:
                 self._depth.release()
             self._depth = frame.ctx.buffer(reserve=words * 4)

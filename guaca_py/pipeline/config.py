@@ -112,9 +112,13 @@ def parse_pipeline(doc: Located) -> PipelineConfig:
             f"wrong pass order: found '{head[bad]}' where '{COMPULSORY[bad]}' belongs",
             f"passes must start with {', '.join(COMPULSORY)} in this order, post passes after",
         )
-    for i, n in enumerate(names[len(COMPULSORY) :], len(COMPULSORY)):
-        if n in COMPULSORY:
-            raise doc.error(("passes", i), f"pass '{n}' appears twice")
+    for i, n in enumerate(names):
+        if n in names[:i]:
+            raise doc.error(
+                ("passes", i),
+                f"pass '{n}' appears twice (first as passes[{names.index(n)}])",
+                "list each pass once; its settings go in that one entry",
+            )
     settings["method"] = mid
     return PipelineConfig(str(data.get("name", Path(doc.file).stem)), (res[0], res[1]), settings, passes, doc.file)
 

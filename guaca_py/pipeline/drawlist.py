@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import ConfigError
 from ..materials import MaterialDescription, MaterialRegistry
 from ..scene.graph import MeshData, Scene
 
@@ -25,6 +26,43 @@ class Draw:
     normal_bytes: bytes | None = None
 
 
+MAX_WORLD = 1.0e7  # float32 positions step by 1 at 1.7e7; llvmpipe's clipper drops triangles past ~1e8
+
+
+def _mesh_reach(mesh) -> float:
+    """Largest absolute object-space coordinate, computed once per mesh (meshes are immutable once loaded)."""
+    reach = mesh.__dict__.get("_guaca_reach")
+    if reach is None:
+        reach = mesh.__dict__["_guaca_reach"] = float(np.abs(mesh.positions).max()) if len(mesh.positions) else 0.0
+    return reach
+
+
+def check_world_extents(placed: list[tuple]) -> None:
+    """Reject a mesh whose world-space extent leaves the range float32 vertices and clipping handle.
+
+    `placed` holds (node, world matrix) pairs. A bound, not the exact box: per axis |translation|
+    plus the row sum of |M| times the mesh's reach, for all draws in one array operation (it runs
+    every frame, also on the cached path).
+    """
+    if not placed:
+        return
+    worlds = np.array([w for _, w in placed])
+    reach = np.array([_mesh_reach(n.mesh) for n, _ in placed])
+    bound = (np.abs(worlds[:, :3, 3]) + np.abs(worlds[:, :3, :3]).sum(axis=2) * reach[:, None]).max(axis=1)
+    bad = np.flatnonzero(~(bound <= MAX_WORLD))  # NaN fails too
+    if len(bad):
+        node = placed[int(bad[0])][0]
+        file, line = getattr(node, "source", (None, None))
+        raise ConfigError(
+            f"node '{node.name}' reaches {bound[bad[0]]:.3g} units from the origin, beyond {MAX_WORLD:.0e}: float32 "
+            "positions and the rasterizer's clipper cannot hold it (the object would vanish)",
+            file,
+            line,
+            "transform",
+            "scale the scene to keep coordinates within 1e7 units",
+        )
+
+
 def build_draw_list(scene: Scene, materials: MaterialRegistry, cache=None) -> list[Draw]:
     """Serialize the scene graph; materials and uniform values are checked here (errors cite the scene).
 
@@ -34,6 +72,7 @@ def build_draw_list(scene: Scene, materials: MaterialRegistry, cache=None) -> li
     if cache is not None:
         return _build_cached(scene, materials, cache)
     draws: list[Draw] = []
+    placed: list[tuple] = []
     for node, world in scene.walk():
         if node.mesh is None:
             continue
@@ -43,6 +82,8 @@ def build_draw_list(scene: Scene, materials: MaterialRegistry, cache=None) -> li
         desc = materials.get(desc_name, where)
         values = desc.resolve_values(inst.uniforms if inst else {}, where)
         draws.append(Draw(len(draws), node.name, node.mesh, desc, values, world, desc.is_transparent(values)))
+        placed.append((node, world))
+    check_world_extents(placed)
     return draws
 
 
@@ -64,6 +105,7 @@ def _build_cached(scene: Scene, materials: MaterialRegistry, cache) -> list[Draw
     def visit(node, parent_key, parent_world):
         key, world, model_bytes, normal_bytes = cache.world(parent_key, parent_world, node.transform)
         if node.mesh is not None:
+            placed.append((node, world))
             inst = node.material
             desc, values, transparent = cache.material(material_key(inst, scene.source), resolver(inst))
             draws.append(
@@ -72,7 +114,9 @@ def _build_cached(scene: Scene, materials: MaterialRegistry, cache) -> list[Draw
         for child in node.children:
             visit(child, key, world)
 
+    placed: list[tuple] = []
     for root in scene.nodes:
         visit(root, None, None)
+    check_world_extents(placed)
     cache.end_frame()
     return draws

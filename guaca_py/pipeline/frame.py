@@ -143,17 +143,18 @@ class FrameResult:
         return self._linear
 
     def save(self, path: str | Path) -> Path:
-        """Write the image as PNG."""
+        """Write the image (format from the suffix, e.g. .png) through a temporary file and a rename."""
         from PIL import Image
 
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        Image.fromarray(self.image).save(path)
-        return path
+        from ..output import IMAGE_SUFFIXES, check_writable, write_atomic
+
+        path = check_writable(path, "--out", IMAGE_SUFFIXES)
+        fmt = Image.registered_extensions().get(path.suffix.lower())
+        return write_atomic(path, lambda tmp: Image.fromarray(self.image).save(tmp, format=fmt), "--out")
 
     def save_stats(self, path: str | Path) -> Path:
-        """Write the statistics as JSON."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(self.stats, indent=2))
-        return path
+        """Write the statistics as JSON through a temporary file and a rename."""
+        from ..output import check_writable, write_atomic
+
+        text = json.dumps(self.stats, indent=2)
+        return write_atomic(check_writable(path, "--stats"), lambda tmp: tmp.write_text(text), "--stats")

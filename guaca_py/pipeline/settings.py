@@ -21,16 +21,33 @@ class Setting:
         """Reason why `value` is invalid, or None."""
         if isinstance(value, bool) and bool not in self.types:
             return f"expected {'/'.join(t.__name__ for t in self.types)}, got {value!r}"
-        if not isinstance(value, self.types):
-            return f"expected {'/'.join(t.__name__ for t in self.types)}, got {value!r}"
+        if not isinstance(value, self.types) or (isinstance(value, str) and float in self.types and _numeric(value)):
+            reason = f"expected {'/'.join(t.__name__ for t in self.types)}, got {value!r}"
+            if isinstance(value, str) and _numeric(value) and (float in self.types or int in self.types):
+                reason += f" (YAML reads {value!r} as text: write it with a dot and a signed exponent, e.g. "
+                reason += f"{float(value):.1e})"
+            return reason
         if self.choices is not None and value not in self.choices:
             return f"must be one of {', '.join(map(str, self.choices))}, got {value!r}"
         return self.check(value) if self.check else None
 
 
+def _numeric(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return text.strip().lower() not in ("nan", "inf", "-inf", "+inf", "infinity")
+
+
 def positive(v) -> str | None:
     """Check: value > 0."""
     return None if v > 0 else f"must be > 0, got {v}"
+
+
+def non_negative(v) -> str | None:
+    """Check: value >= 0."""
+    return None if v >= 0 else f"must be >= 0, got {v}"
 
 
 def unit_interval(v) -> str | None:

@@ -71,6 +71,7 @@ import numpy as np
 import yaml
 
 from ..errors import ConfigError
+from ..yaml_source import compose, nesting_error
 from .graph import LIGHT_TYPES, Camera, Light, MaterialInstance, MeshData, Node, Scene, Transform
 from .mesh_io import load_mesh_file
 from .primitives import PRIMITIVE_KINDS, make_primitive
@@ -86,6 +87,9 @@ LIGHT_KEYS = {
     "directional": ("type", "direction", "color", "intensity"),
 }
 TEXTURE_SUFFIXES = (".png", ".jpg", ".jpeg")
+MAX_SCENE_DEPTH = 100  # levels of children; the loader, the graph walk and the draw list recurse per level
+DEPTH_BITS = 24  # the G-buffer depth and gl_FragCoord.z both resolve 2**-24 steps near 1
+MAX_WORLD = 1.0e7  # as pipeline/drawlist.py: beyond it float32 positions and llvmpipe's clipper fail
 
 _TAG = "tag:yaml.org,2002:"
 
@@ -114,6 +118,19 @@ def _kind(node: yaml.Node) -> str:
         return f"a list of {len(node.value)}"
     short = node.tag.rsplit(":", 1)[-1]
     return "nothing (null)" if short == "null" else f"{short} {node.value!r}"
+
+
+def number_hint(node: yaml.Node) -> str:
+    """How to write a number; YAML 1.1 reads exponents without a dot and a sign ('1e30') as text."""
+    text = node.value if isinstance(node, yaml.ScalarNode) else None
+    if isinstance(text, str):
+        try:
+            value = float(text)
+        except ValueError:
+            value = None
+        if value is not None:
+            return f"YAML reads {text!r} as text: write it with a dot and a signed exponent, e.g. {value:.1e}"
+    return "write a plain number like 1.5"
 
 
 class _Reader:
@@ -168,7 +185,7 @@ class _Reader:
         """A finite number, optionally within [lo, hi] (or (lo, hi] with lo_open)."""
         node = at.node
         if not (isinstance(node, yaml.ScalarNode) and node.tag in (_TAG + "int", _TAG + "float")):
-            raise self.error(at, f"expected a number, got {_kind(node)}", "write a plain number like 1.5")
+            raise self.error(at, f"expected a number, got {_kind(node)}", number_hint(node))
         value = float(self.plain(node))
         if not math.isfinite(value):
             raise self.error(at, f"expected a finite number, got {node.value}")
@@ -246,6 +263,15 @@ class _Reader:
             raise self.error(
                 f.get("far", f.get("near", at)), f"far ({cam.far:g}) must be greater than near ({cam.near:g})"
             )
+        if cam.far / cam.near > 2.0**DEPTH_BITS:
+            # one depth step spans z**2 / (near * 2**24): beyond near * 2**24 a single step covers
+            # the whole distance, surfaces collapse onto the far plane and vanish
+            raise self.error(
+                f.get("near", f.get("far", at)),
+                f"far / near = {cam.far / cam.near:.3g} exhausts the {DEPTH_BITS}-bit depth buffer "
+                f"(surfaces beyond {cam.near * 2.0**DEPTH_BITS:.3g} units collapse onto the far plane)",
+                f"raise near to at least {cam.far / 2.0**DEPTH_BITS:.3g}, better far / 1e5 = {cam.far / 1e5:.3g}",
+            )
         view = np.subtract(cam.target, cam.position)
         if np.linalg.norm(view) < 1e-9:
             raise self.error(f.get("target", at), "camera target equals its position", "move the target")
@@ -294,8 +320,21 @@ class _Reader:
             )
         return light
 
-    def node(self, at: _At) -> Node:
-        """One node and, recursively, its children."""
+    def node(self, at: _At, open_: tuple = ()) -> Node:
+        """One node and, recursively, its children (`open_`: the YAML nodes of its ancestors)."""
+        if any(n is at.node for n in open_):
+            raise nesting_error(at.node, self.file, at.key, cycle=True)
+        if len(open_) >= MAX_SCENE_DEPTH:
+            parts = at.key.split(".")
+            key = f"{parts[0]}.(...{len(parts) - 2} levels...).{parts[-1]}"
+            raise ConfigError(
+                f"nodes nested deeper than {MAX_SCENE_DEPTH} levels",
+                self.file,
+                at.line,
+                key,
+                "flatten the hierarchy (bake transforms) or split the scene",
+            )
+        open_ = open_ + (at.node,)
         f = self.mapping(at, NODE_KEYS, "a node")
         node = Node(name=self.string(f["name"]) if "name" in f else at.key)
         if "transform" in f:
@@ -312,7 +351,7 @@ class _Reader:
                     sub.material = node.material  # a material given in the scene overrides the file's
             node.material = None
         if "children" in f:
-            node.children = node.children + [self.node(c) for c in self.items(f["children"], "child nodes")]
+            node.children = node.children + [self.node(c, open_) for c in self.items(f["children"], "child nodes")]
         node.source = (self.file, at.line)  # for renderer errors about this node
         return node
 
@@ -327,6 +366,13 @@ class _Reader:
         if "scale" in f:
             s = f["scale"]
             scale = (self.number(s),) * 3 if isinstance(s.node, yaml.ScalarNode) else self.vector(s)
+            if any(abs(c) > MAX_WORLD for c in scale):
+                raise self.error(
+                    s,
+                    f"scale {max(abs(c) for c in scale):.3g} exceeds {MAX_WORLD:.0e}: float32 positions and "
+                    "the rasterizer's clipper cannot hold such coordinates (objects vanish)",
+                    "model in units that keep coordinates within 1e7 (e.g. kilometres instead of metres)",
+                )
             if any(abs(c) < 1e-12 for c in scale):
                 raise self.error(
                     s,
@@ -447,7 +493,7 @@ class _Reader:
 def load_scene_text(text: str, source_name: str = "<string>", base_dir: str | Path | None = None) -> Scene:
     """Parse scene YAML; source_name is cited in errors, relative paths resolve against base_dir."""
     try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
+        root = compose(text, source_name)
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         context = exc.context

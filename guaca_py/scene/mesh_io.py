@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import numpy as np
@@ -51,6 +52,28 @@ def _texcoords(mesh, count: int) -> np.ndarray:
     return np.nan_to_num(np.asarray(uv, dtype=np.float32))
 
 
+_TEXT_FORMATS = (".obj", ".off")  # text formats whose non-UTF-8 bytes send trimesh to an undeclared charset detector
+
+
+def _load_args(p: Path, trimesh) -> dict:
+    """trimesh.load arguments; text files that are not UTF-8 are decoded as Latin-1 here.
+
+    Their syntax is ASCII and only comments and names may hold other bytes; Latin-1 maps every
+    byte to a character, so the geometry reads the same (trimesh would import charset_normalizer).
+    """
+    if p.suffix.lower() in _TEXT_FORMATS:
+        data = p.read_bytes()
+        try:
+            data.decode("utf-8")
+        except UnicodeDecodeError:
+            return {
+                "file_obj": io.StringIO(data.decode("latin-1")),
+                "file_type": p.suffix.lower().lstrip("."),
+                "resolver": trimesh.resolvers.FilePathResolver(str(p)),
+            }
+    return {"file_obj": str(p)}
+
+
 def load_mesh_file(
     path: str | Path, file_for_errors: str | Path | None = None, line: int | None = None, key: str | None = None
 ) -> MeshData:
@@ -68,7 +91,7 @@ def load_mesh_file(
             f"mesh file {what}: {p}", "check the path; relative paths are resolved against the scene file's directory"
         )
     try:
-        loaded = trimesh.load(str(p))
+        loaded = trimesh.load(**_load_args(p, trimesh))
     except Exception as exc:  # trimesh raises many types for unreadable input; all mean "bad file"
         raise fail(f"cannot read mesh file {p}: {exc}", MESH_FORMATS_HINT) from exc
 
