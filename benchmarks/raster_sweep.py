@@ -154,7 +154,7 @@ def main(argv=None) -> int:
     (args.out / "raster_sweep.json").write_text(json.dumps(result, indent=2))
     plot(result, args.out / "raster_sweep.png")
     print(f"wrote {args.out / 'raster_sweep.json'} and {args.out / 'raster_sweep.png'}")
-    for r in renderers.values():
+    for r in reversed(renderers.values()):  # the first made the context the others share
         r.release()
     return 0
 

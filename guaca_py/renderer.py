@@ -381,6 +381,9 @@ class Renderer:
         """Free every GPU resource the renderer holds, and its context when it made its own."""
         if getattr(self, "released", False):
             return
+        if isinstance(self.ctx.mglo, moderngl.InvalidObject):  # the context went first: so did our objects
+            self.released = True
+            return
         self._release_gpu()
         self.frame_serial += 1  # outstanding FrameResults can no longer read their texture
         self.released = True

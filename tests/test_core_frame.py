@@ -53,7 +53,10 @@ def test_early_termination_culls_within_bound(renderer_factory, order):
     scene = simple_scene(nodes if order == "front_to_back" else nodes[::-1])
     ref, mask, layers = reference_of(scene, 64, 64)
     threshold = 0.9
-    r = renderer_factory("exact", method="presort_lf_et", method_overrides={"threshold": threshold})
+    # submission order is the subject: the hardware rasterizer keeps it (the compute one sorts
+    # triangles front to back for early termination, which `auto` picks on GPUs)
+    overrides = {"threshold": threshold, "raster": "hardware"}
+    r = renderer_factory("exact", method="presort_lf_et", method_overrides=overrides)
     frame = r.render(scene, 64, 64)
     fr = frame.stats["fragments"]
     if order == "front_to_back":

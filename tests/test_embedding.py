@@ -170,6 +170,7 @@ def test_interleaved_renderers_on_several_contexts(host_ctx):
 
 def test_release_frees_every_gl_object(host_ctx):
     with host_ctx:
+        host_ctx.finish()  # a GPU driver deletes names in use only once the GPU is done with them
         before = count_gl_objects()
     after = []
     for _ in range(2):
@@ -178,10 +179,12 @@ def test_release_frees_every_gl_object(host_ctx):
         r.set_method("post_sort")
         r.render(_scene(), SIZE, SIZE, target=host_ctx.fbo or None)
         with host_ctx:
+            host_ctx.finish()
             during = count_gl_objects()
         assert during["programs"] > before["programs"] + 3 and during["buffers"] > before["buffers"]
         r.release()
         with host_ctx:
+            host_ctx.finish()
             after.append(count_gl_objects())
     for kind in ("buffers", "textures", "vertex_arrays", "framebuffers", "queries"):
         assert after[0][kind] == after[1][kind] == before[kind], kind
@@ -243,6 +246,7 @@ def test_soak_thousand_edited_frames_stay_flat(host_ctx):
         if i in (199, 999):
             gc.collect()  # count what is kept, not garbage that a later collection frees
             with host_ctx:
+                host_ctx.finish()
                 marks[i] = (count_gl_objects(), tracemalloc.get_traced_memory()[0], _rss_kib())
     tracemalloc.stop()
     (gl0, py0, rss0), (gl1, py1, rss1) = marks[199], marks[999]
@@ -329,3 +333,12 @@ def test_host_wireframe_and_clip_control_do_not_leak_into_guaca(host_ctx):
     np.testing.assert_array_equal(img, clean.render(_scene(), SIZE, SIZE).image)
     for x in (r, clean):
         x.release()
+
+
+def test_release_after_the_shared_context_went_is_harmless():
+    owner = Renderer("exact")
+    guest = Renderer("exact", ctx=owner.ctx)
+    guest.render(_scene(), SIZE, SIZE)
+    owner.release()  # frees the context both used
+    guest.release()  # nothing left to free: no error
+    assert guest.released and isinstance(owner.ctx.mglo, moderngl.InvalidObject)

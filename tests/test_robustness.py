@@ -49,7 +49,8 @@ def run(args: list[str], capsys) -> tuple[int, str, str]:
 
 def run_isolated(args: list[str], env: dict | None = None, timeout: int = 120) -> subprocess.CompletedProcess:
     """`guaca render ...` in a child process, so a crash inside the driver cannot take pytest down."""
-    e = dict(os.environ, PYTHONPATH=str(ROOT), **(env or {}))
+    path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH", "")) if p)
+    e = dict(os.environ, PYTHONPATH=path, **(env or {}))  # keep where the dependencies are installed
     return subprocess.run(
         [sys.executable, "-m", "guaca_py", "render", *map(str, args)],
         capture_output=True,

@@ -73,7 +73,7 @@ def mean_projected_area(mesh, world: np.ndarray, view_projection: np.ndarray, wi
     xy = xy[((hi >= 0) & (lo <= (width, height))).all(axis=1)]  # on screen
     e1, e2 = xy[:, 1] - xy[:, 0], xy[:, 2] - xy[:, 0]
     area = float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).mean()) * 0.5 if len(xy) else 0.0
-    if len(_areas) >= 4096:  # bounded: a moving camera makes every key new
+    if len(_areas) >= 256:  # bounded: a moving camera or node makes every key new
         _areas.clear()
     _areas[key] = area
     return area
