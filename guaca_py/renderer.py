@@ -8,6 +8,7 @@ from pathlib import Path
 import moderngl
 import numpy as np
 
+from . import antialiasing
 from .context import create_context
 from .errors import ConfigError, GuacaError, UnsupportedMethodError
 from .gpu_resources import MeshCache, TextureCache
@@ -85,6 +86,8 @@ class Renderer:
 
     def _build(self, pipeline, method, method_overrides, material_paths, template_paths) -> None:
         self.config = load_pipeline(pipeline)
+        # samples per pixel the G-buffer and coverage masks hold (a device may round antialiasing.samples up)
+        self.samples = antialiasing.check_device(self.ctx, self.config.antialiasing["samples"], self.caps.renderer)
         self.shaders = ShaderLibrary(self.ctx, template_paths)
         self.materials = MaterialRegistry(material_paths)
         self.meshes = MeshCache(self.ctx)
@@ -120,7 +123,9 @@ class Renderer:
         reason = cls.unsupported_reason(self.caps)
         if reason:
             raise UnsupportedMethodError(f"method '{mid}' cannot run on {self.caps.renderer}: {reason}")
+        antialiasing.check_method(cls, self.samples)
         method = cls(method_settings(mid, self.config.transparency, overrides, self.config.source), self.caps)
+        method.samples = self.samples  # coverage masks in its nodes; the compute rasterizer has none
         refusal = method.compute_raster_refusal() if method.settings["raster"] == "compute" else None
         if refusal:
             raise UnsupportedMethodError(

@@ -42,6 +42,7 @@ class ForwardBlendMethod(TransparencyMethod):
 
     exact = False
     geometry_in_composite = True
+    antialiasing_refusal = "it blends in hardware into one colour per pixel, with no per-sample storage"
     blend = "over"  # template variant of approx/blend_fragment.glsl.j2
     accum_dtype = "f4"
 

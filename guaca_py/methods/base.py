@@ -40,6 +40,10 @@ class TransparencyMethod:
     SETTINGS: ClassVar[dict[str, Setting]] = {}
     geometry_in_composite: ClassVar[bool] = False
     compute_raster: ClassVar[bool] = False  # takes fragments from the compute rasterizer (docs/raster.md)
+    # antialiasing.samples > 1 (docs/antialiasing.md): nodes carry coverage masks, resolved per sample
+    supports_antialiasing: ClassVar[bool] = False
+    antialiasing_refusal: ClassVar[str] = "its fragments carry no coverage mask"
+    samples: int = 1  # set by the renderer from antialiasing.samples
 
     def __init__(self, settings: dict, caps: Capabilities):
         self.settings = settings
@@ -61,6 +65,11 @@ class TransparencyMethod:
 
     def compute_raster_refusal(self) -> str | None:
         """Why this method cannot take compute-rasterized fragments, or None when it can."""
+        if self.samples > 1:
+            return (
+                f"the compute rasterizer makes no coverage masks (antialiasing.samples {self.samples}); "
+                "with samples > 1 transparent draws go through the hardware rasterizer"
+            )
         if self.compute_raster:
             return None
         return (

@@ -38,6 +38,8 @@ def _page_check(v) -> str | None:
 class _CountedStorage(TransparencyMethod):
     """Shared storage, counters, GL state and resolve of the counted-storage methods."""
 
+    antialiasing_refusal = "its counted records carry no coverage mask (counting and storing passes are per pixel)"
+
     layout: str = ""
     SETTINGS = {
         "budget_mb": Setting(

@@ -28,6 +28,7 @@ class KBuffer(TransparencyMethod):
 
     id = "kbuffer"
     exact = False
+    antialiasing_refusal = "its k fixed slots per pixel merge fragments whatever samples they cover"
     geometry_passes = "1"
     summary = "k nearest fragments per pixel in fixed sorted slots; overflow merged or dropped"
     SETTINGS = {

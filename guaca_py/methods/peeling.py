@@ -54,6 +54,7 @@ class PeelingMethod(TransparencyMethod):
 
     exact = True
     geometry_in_composite = True
+    antialiasing_refusal = "it peels one depth per pixel and pass, so a layer cannot differ between samples"
     needs_ordering = True  # geometry passes read-modify-write per-pixel state in primitive order
     step_method = ""  # `method` variable of peeling/step.comp.j2
     has_back = False  # a back accumulation (dual)

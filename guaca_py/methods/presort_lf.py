@@ -30,6 +30,7 @@ class PreSortLF(TransparencyMethod):
     early_termination = False
     summary = "sorted lock-free insertion into per-pixel lists (no early termination)"
     compute_raster = True  # insertion is gua_submit_at(pix, depth, tie): callable from compute kernels
+    supports_antialiasing = True  # nodes carry the coverage mask; the composite resolves per sample
     counters: tuple[str, ...] = COUNTERS  # counter words of the counter buffer, in layout order
     extra_slots = 0  # per-pixel link words after the node links (second list heads, locks)
     SETTINGS = {
@@ -232,6 +233,7 @@ class PreSortLF(TransparencyMethod):
             "max_steps": int(self.settings["max_steps"]),
             "subgroup_counts": ballot,
             "subgroup_alloc": ballot and self.path == "64bit",
+            "aa_samples": self.samples,
         }
 
     def extensions(self) -> str:
@@ -263,7 +265,8 @@ class PreSortLF(TransparencyMethod):
             "abuffer_pool": self.capacity * self.node_bytes,
             "abuffer_pool_used": (used + 1) * self.node_bytes,
             "abuffer_cull_depth": self._pixels * 4,
-            "abuffer_node_bytes": self.node_bytes,
+            "abuffer_node_bytes": self.node_bytes,  # coverage masks ride in free payload bits: same size
+            "samples": self.samples,
         }
 
     def release(self) -> None:

@@ -36,6 +36,7 @@ class CompositePass(FullscreenPass):
             method_resolve_template=method.resolve_template() if method else "",
             **(method.template_vars() if method else {}),
         )
+        tvars["aa_samples"] = self.renderer.samples  # per-sample accumulators where > 1
         key = ("composite", tuple(sorted((k, str(v)) for k, v in tvars.items())), method.id if method else None)
         return self.compile(tvars, key)
 

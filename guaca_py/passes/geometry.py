@@ -15,16 +15,21 @@ class GeometryPass(Pass):
     def __init__(self, renderer, settings):
         super().__init__(renderer, settings)
         self._gbuffer = None
+        self._samples = 1
 
     def gbuffer(self, frame):
         """G-buffer framebuffer (albedo, normal+roughness, emissive+metalness, depth)."""
         size = (frame.width, frame.height)
-        if self._gbuffer is None or self._gbuffer.size != size:
+        samples = self.renderer.samples
+        if self._gbuffer is None or self._gbuffer.size != size or self._samples != samples:
             self.release()
             ctx = self.ctx
-            colors = [ctx.texture(size, 4, dtype="f2") for _ in range(3)]
-            depth = ctx.depth_texture(size)
-            depth.compare_func = ""  # sampled as plain depth values by later passes
+            self._samples = samples
+            ms = samples if samples > 1 else 0  # antialiasing: a multisampled G-buffer
+            colors = [ctx.texture(size, 4, dtype="f2", samples=ms) for _ in range(3)]
+            depth = ctx.depth_texture(size, samples=ms)
+            if not ms:  # multisample textures have no sampler state (read by texelFetch)
+                depth.compare_func = ""  # sampled as plain depth values by later passes
             self._gbuffer = ctx.framebuffer(color_attachments=colors, depth_attachment=depth)
             self._depth_only = ctx.framebuffer(depth_attachment=depth)
         return self._gbuffer
@@ -54,7 +59,9 @@ class GeometryPass(Pass):
             "has_opaque": any(not d.transparent for d in frame.draws),
         }
         frame.resources["gbuffer"] = g
-        frame.stats.setdefault("memory", {})["gbuffer"] = frame.pixel_count * (3 * 8 + 4)
+        asked = self.renderer.config.antialiasing["samples"]
+        frame.stats["antialiasing"] = {"samples": self._samples, **({"asked": asked} if asked != self._samples else {})}
+        frame.stats.setdefault("memory", {})["gbuffer"] = frame.pixel_count * (3 * 8 + 4) * self._samples
         method = self.renderer.method
         has_transparency = bool(frame.transparent_draws)
         frame.resources["transparent"] = method if has_transparency else None

@@ -11,7 +11,7 @@ from ..yaml_source import Located, load_yaml_file, load_yaml_text
 from .settings import Setting, positive, resolve_settings
 
 COMPULSORY = ("geometry", "light_culling", "composite")
-_TOP = {"name", "resolution", "transparency", "passes"}
+_TOP = {"name", "resolution", "transparency", "antialiasing", "passes"}
 
 
 @dataclass
@@ -32,6 +32,7 @@ class PipelineConfig:
     transparency: dict
     passes: list[PassConfig] = field(default_factory=list)
     source: str = "<config>"
+    antialiasing: dict = field(default_factory=lambda: {"samples": 1})  # guaca_py/antialiasing.py
 
     def pass_settings(self, name: str) -> dict | None:
         """Settings of the first pass called `name`, or None if absent."""
@@ -49,6 +50,7 @@ def _size(v) -> str | None:
 
 def parse_pipeline(doc: Located) -> PipelineConfig:
     """Validate a parsed pipeline document; errors cite file, line and key."""
+    from .. import antialiasing
     from ..methods import method_class, method_ids  # late: methods import pipeline settings
     from ..passes import PASS_TYPES
 
@@ -72,6 +74,7 @@ def parse_pipeline(doc: Located) -> PipelineConfig:
         )
     schema = method_class(mid).settings_schema()
     settings = resolve_settings(schema, tr, lambda k, r, h: doc.error(("transparency", k), r, h))
+    aa = antialiasing.parse(data.get("antialiasing"), lambda k, r, h: doc.error(("antialiasing",) + ((k,) if k else ()), r, h))
     passes_raw = data.get("passes")
     if not isinstance(passes_raw, list) or not passes_raw:
         raise doc.error(
@@ -120,7 +123,8 @@ def parse_pipeline(doc: Located) -> PipelineConfig:
                 "list each pass once; its settings go in that one entry",
             )
     settings["method"] = mid
-    return PipelineConfig(str(data.get("name", Path(doc.file).stem)), (res[0], res[1]), settings, passes, doc.file)
+    name = str(data.get("name", Path(doc.file).stem))
+    return PipelineConfig(name, (res[0], res[1]), settings, passes, doc.file, aa)
 
 
 def load_pipeline(spec: str | Path | PipelineConfig = "default") -> PipelineConfig:

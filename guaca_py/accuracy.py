@@ -1,0 +1,101 @@
+"""Ground truth for anti-aliased frames and errors against it (docs/antialiasing.md).
+
+The reference of an anti-aliased frame is the exact method rendered at k times the resolution
+and box filtered: every k x k block of point samples averaged into one pixel. Large references
+are rendered in tiles (sub-frusta of the same camera), so k = 8 at 1024² needs no 8192² target.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from .scene.graph import Camera, Scene
+
+
+@dataclass
+class TileCamera(Camera):
+    """The camera of a full frame restricted to one tile of it: NDC [x0, x1] x [y0, y1] fills the target."""
+
+    full_aspect: float = 1.0
+    ndc: tuple[float, float, float, float] = (-1.0, 1.0, -1.0, 1.0)
+
+    def projection_matrix(self, aspect: float) -> np.ndarray:
+        """The full frame's projection, then the tile's NDC window scaled to [-1, 1] (`aspect` is the tile's)."""
+        x0, x1, y0, y1 = self.ndc
+        sx, sy = 2.0 / (x1 - x0), 2.0 / (y1 - y0)
+        crop = np.eye(4)
+        crop[0, 0], crop[0, 3] = sx, -sx * 0.5 * (x0 + x1)
+        crop[1, 1], crop[1, 3] = sy, -sy * 0.5 * (y0 + y1)
+        return crop @ super().projection_matrix(self.full_aspect)
+
+
+@dataclass
+class Supersampled:
+    """A box-filtered reference: mean colour per pixel and the spread of its sub-pixels."""
+
+    image: np.ndarray  # (H, W, 3) float64 linear, row 0 at the top
+    spread: np.ndarray  # (H, W) largest max-min over a channel of the k x k sub-pixels
+    k: int
+    tiles: int
+
+
+def supersampled(renderer, scene: Scene, width: int, height: int, k: int, tile_px: int = 2048) -> Supersampled:
+    """`renderer` (an exact method with linear output) at k x (width, height), box filtered to (width, height)."""
+    big_w, big_h = width * k, height * k
+    nx, ny = -(-big_w // tile_px), -(-big_h // tile_px)
+    # tiles hold whole output pixels, so each box filter reads one tile
+    cols = np.linspace(0, width, nx + 1).round().astype(int)
+    rows = np.linspace(0, height, ny + 1).round().astype(int)
+    mean = np.zeros((height, width, 3))
+    spread = np.zeros((height, width))
+    for ty in range(ny):
+        for tx in range(nx):
+            c0, c1, r0, r1 = cols[tx], cols[tx + 1], rows[ty], rows[ty + 1]
+            if c1 <= c0 or r1 <= r0:
+                continue
+            ndc = (2.0 * c0 / width - 1.0, 2.0 * c1 / width - 1.0, 1.0 - 2.0 * r1 / height, 1.0 - 2.0 * r0 / height)
+            cam = TileCamera(**dataclasses.asdict(scene.camera), full_aspect=width / height, ndc=ndc)
+            frame = renderer.render(dataclasses.replace(scene, camera=cam), (c1 - c0) * k, (r1 - r0) * k)
+            if frame.linear is None:
+                raise ValueError("the supersampled reference needs a pipeline with linear output (pipelines/exact)")
+            blocks = np.asarray(frame.linear, dtype=np.float64).reshape(r1 - r0, k, c1 - c0, k, 3)
+            mean[r0:r1, c0:c1] = blocks.mean(axis=(1, 3))
+            spread[r0:r1, c0:c1] = (blocks.max(axis=(1, 3)) - blocks.min(axis=(1, 3))).max(axis=-1)
+    return Supersampled(mean, spread, k, nx * ny)
+
+
+def box_filter(image: np.ndarray, k: int) -> np.ndarray:
+    """Average k x k blocks of an (H*k, W*k, C) image."""
+    h, w = image.shape[0] // k, image.shape[1] // k
+    return np.asarray(image, dtype=np.float64).reshape(h, k, w, k, -1).mean(axis=(1, 3))
+
+
+def rmse_255(image: np.ndarray, reference: np.ndarray, mask: np.ndarray | None = None) -> float:
+    """RMSE in 1/255 of two linear images clipped to [0, 1], over `mask` (all pixels if None)."""
+    d = (np.clip(np.asarray(image, np.float64), 0, 1) - np.clip(reference, 0, 1)) * 255.0
+    if mask is not None:
+        if not mask.any():
+            return float("nan")
+        d = d[mask]
+    return float(np.sqrt(np.mean(d**2)))
+
+
+def srgb(linear: np.ndarray) -> np.ndarray:
+    """sRGB encoding of linear values clipped to [0, 1]."""
+    x = np.clip(linear, 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+
+
+def flip(image: np.ndarray, reference: np.ndarray) -> float | None:
+    """Mean LDR-FLIP of two linear images (sRGB-encoded for FLIP), or None without `flip-evaluator`."""
+    try:
+        import flip_evaluator
+    except ImportError:
+        return None
+    ref = srgb(reference).astype(np.float32)
+    test = srgb(image).astype(np.float32)
+    _, mean, _ = flip_evaluator.evaluate(ref, test, "LDR", applyMagma=False)
+    return float(mean)

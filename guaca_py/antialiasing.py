@@ -1,0 +1,112 @@
+"""`antialiasing: {samples: N}`: the setting, the device's limit and which methods take coverage.
+
+With N > 1 samples the G-buffer is multisampled, each A-buffer node carries its fragment's
+coverage mask (gl_SampleMaskIn) and the composite blends every node into the samples it covers,
+then averages them (docs/antialiasing.md). Methods that cannot carry coverage refuse N > 1.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from .errors import ConfigError, UnsupportedMethodError
+from .pipeline.settings import Setting, resolve_settings
+
+SAMPLE_COUNTS = (1, 2, 4, 8)
+SETTINGS = {
+    "samples": Setting(
+        (int,),
+        1,
+        "samples per pixel: 1 (no MSAA) or 2/4/8 (multisampled G-buffer, coverage-aware A-buffer)",
+        choices=SAMPLE_COUNTS,
+    ),
+}
+# Every node packs its mask into the free upper half of payload word 6 (common/payload_pack):
+# the node keeps its size, so memory per fragment is unchanged by antialiasing.
+COVERAGE_BITS = 16
+SUGGESTION = "presort_lf_et (or another one-pass A-buffer method: presort_lf, presort_lf_merge2_et, " + (
+    "presort_cs, presort_cs_et, post_sort, post_merge16)"
+)
+
+
+def parse(given, error) -> dict:
+    """Validated `antialiasing:` settings; `error(key, reason, hint)` builds the exception."""
+    if given is None:
+        given = {}
+    if not isinstance(given, dict):
+        raise error(None, "must be a mapping like {samples: 4}", None)
+    return resolve_settings(SETTINGS, given, error)
+
+
+def device_samples(ctx) -> int:
+    """Most samples this device renders into both colour and depth textures."""
+    info = ctx.info
+    keys = ("GL_MAX_SAMPLES", "GL_MAX_COLOR_TEXTURE_SAMPLES", "GL_MAX_DEPTH_TEXTURE_SAMPLES")
+    return min(int(info.get(k) or 1) for k in keys)
+
+
+def check_device(ctx, samples: int, renderer_name: str) -> int:
+    """The samples per pixel the device renders for `samples` asked (some round up); refuses too many."""
+    most = device_samples(ctx)
+    if samples > most:
+        raise UnsupportedMethodError(
+            f"antialiasing.samples {samples} cannot run on {renderer_name}: it renders at most {most} samples "
+            f"per pixel (GL_MAX_COLOR/DEPTH_TEXTURE_SAMPLES); use samples: {max(s for s in SAMPLE_COUNTS if s <= most)}"
+        )
+    return samples if samples <= 1 else _allocated_samples(ctx, samples)
+
+
+_PROBE = """#version 450 core
+layout(local_size_x = 1) in;
+uniform sampler2DMS gua_probe;
+layout(std430, binding = 0) buffer GuaProbe { int gua_samples; };
+void main() { gua_samples = textureSamples(gua_probe); }
+"""
+_allocated: dict[tuple[int, int], int] = {}
+
+
+def _allocated_samples(ctx, samples: int) -> int:
+    """Samples a multisampled texture asked for `samples` really has: the resolve must walk them all.
+
+    A device may round a count up (Mesa llvmpipe makes 4 of 2); the coverage masks and the G-buffer
+    then hold the larger count, so the composite reads that many.
+    """
+    key = (id(ctx), samples)
+    if key not in _allocated:
+        tex = ctx.texture((1, 1), 4, dtype="f2", samples=samples)
+        buf = ctx.buffer(reserve=4)
+        prog = ctx.compute_shader(_PROBE)
+        tex.use(location=0)
+        prog["gua_probe"] = 0
+        buf.bind_to_storage_buffer(0)
+        prog.run(1, 1, 1)
+        ctx.memory_barrier()
+        _allocated[key] = max(samples, int(np.frombuffer(buf.read(), dtype=np.int32)[0]))
+        for obj in (prog, buf, tex):
+            obj.release()
+    return _allocated[key]
+
+
+def method_refusal(method_cls, samples: int) -> str | None:
+    """Why method `method_cls` cannot render with `samples` per pixel, or None when it can."""
+    if samples <= 1 or method_cls.supports_antialiasing:
+        return None
+    return (
+        f"method '{method_cls.id}' does not support antialiasing.samples {samples}: "
+        f"{method_cls.antialiasing_refusal}; use {SUGGESTION}, or antialiasing.samples 1"
+    )
+
+
+def check_method(method_cls, samples: int) -> None:
+    """Raise UnsupportedMethodError when the method cannot take coverage masks."""
+    reason = method_refusal(method_cls, samples)
+    if reason:
+        raise UnsupportedMethodError(reason)
+
+
+def with_samples(config, samples: int):
+    """A copy of PipelineConfig `config` rendering `samples` per pixel."""
+    settings = parse({"samples": samples}, lambda k, r, h: ConfigError(r, config.source, None, f"antialiasing.{k}", h))
+    return dataclasses.replace(config, antialiasing=settings)
