@@ -74,7 +74,9 @@ def parse_pipeline(doc: Located) -> PipelineConfig:
         )
     schema = method_class(mid).settings_schema()
     settings = resolve_settings(schema, tr, lambda k, r, h: doc.error(("transparency", k), r, h))
-    aa = antialiasing.parse(data.get("antialiasing"), lambda k, r, h: doc.error(("antialiasing",) + ((k,) if k else ()), r, h))
+    aa = antialiasing.parse(
+        data.get("antialiasing"), lambda k, r, h: doc.error(("antialiasing",) + ((k,) if k else ()), r, h)
+    )
     passes_raw = data.get("passes")
     if not isinstance(passes_raw, list) or not passes_raw:
         raise doc.error(
