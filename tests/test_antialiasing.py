@@ -1,0 +1,187 @@
+"""antialiasing.samples: coverage-aware A-buffer, per-sample resolve, refusals, supersampled reference."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from reference import _test_camera, edge_mask, quad_mesh, reference_of, scene_triangles, unlit
+
+from guaca_py import Renderer
+from guaca_py.accuracy import rmse_255, supersampled
+from guaca_py.antialiasing import device_samples, method_refusal, with_samples
+from guaca_py.errors import ConfigError, UnsupportedMethodError
+from guaca_py.methods import method_class, method_ids
+from guaca_py.pipeline.config import load_pipeline, pipeline_from_text
+from guaca_py.scene.graph import Node, Scene, Transform
+
+EXACT = load_pipeline("exact")
+ONE_PASS_ABUFFER = ("presort_lf", "presort_lf_et", "presort_lf_merge2_et", "presort_cs_et", "post_sort", "post_merge16")
+
+
+def random_quads(seed: int, n: int = 10) -> Scene:
+    """Randomly placed, rotated (so interpenetrating) transparent quads and one opaque quad."""
+    rng = np.random.default_rng(seed)
+    nodes = [
+        Node(
+            f"q{i}",
+            Transform(tuple(rng.uniform(-1, 1, 3) * [1.2, 1.2, 1.0]), tuple(rng.uniform(-60, 60, 3))),
+            quad_mesh(*rng.uniform(0.5, 1.3, 2)),
+            unlit(tuple(rng.uniform(0.1, 1, 3)), float(rng.uniform(0.3, 0.8))),
+        )
+        for i in range(n)
+    ]
+    nodes.append(Node("opaque", Transform((0.3, -0.2, -1.5), (10, 20, 5)), quad_mesh(0.9, 0.7), unlit((0.9, 0.9, 0.8))))
+    return Scene(camera=_test_camera(), background=(0.05, 0.08, 0.12), nodes=nodes)
+
+
+@pytest.fixture(scope="module")
+def aa_renderers(renderer_factory):
+    """Exact-pipeline renderers by (samples, method), made once per module."""
+    made: dict = {}
+
+    def get(samples: int, method: str = "presort_lf_et") -> Renderer:
+        if (samples, method) not in made:
+            made[samples, method] = renderer_factory(with_samples(EXACT, samples), method=method)
+        return made[samples, method]
+
+    return get
+
+
+def test_four_samples_at_least_halve_edge_error(aa_renderers):
+    """Acceptance: edge RMSE against the 8x8-supersampled exact frame falls >= 2x from 1 to 4 samples."""
+    size = 80
+    scene = random_quads(0)
+    ref = supersampled(aa_renderers(1), scene, size, size, 8)
+    tris, _, _ = scene_triangles(scene)
+    edges = edge_mask(tris, scene.camera, size, size, 0.5)
+    one = rmse_255(aa_renderers(1).render(scene, size, size).linear, ref.image, edges)
+    four = rmse_255(aa_renderers(4).render(scene, size, size).linear, ref.image, edges)
+    assert edges.sum() > 500
+    assert one > 5.0  # aliasing is there to remove
+    assert one / four >= 2.0, (one, four)
+
+
+@pytest.mark.parametrize("method", ONE_PASS_ABUFFER)
+def test_multisampled_interior_stays_exact(aa_renderers, method):
+    """With 4 samples every one-pass A-buffer method still matches the float64 reference off edges."""
+    size = 64
+    scene = random_quads(1)
+    ref, edges, _ = reference_of(scene, size, size)
+    frame = aa_renderers(4, method).render(scene, size, size)
+    err = np.abs(np.clip(frame.linear, 0, 1) - np.clip(ref, 0, 1)).max(axis=2) * 255
+    assert err[~edges].max() <= 2.0, (method, err[~edges].max())
+    assert frame.stats["antialiasing"]["samples"] >= 4
+    assert err[edges].max() > 2.0  # edges differ from the centre sample: they are anti-aliased
+
+
+def test_one_sample_is_unchanged(aa_renderers, renderer_factory):
+    """samples: 1 is the plain pipeline: same image bits, no coverage stored, no multisampled G-buffer."""
+    scene = random_quads(2)
+    plain = renderer_factory("exact", method="presort_lf_et").render(scene, 48, 48)
+    r = aa_renderers(1)
+    one = r.render(scene, 48, 48)
+    assert np.array_equal(plain.linear, one.linear)
+    words = np.frombuffer(r.method._nodes.read(), np.uint32).reshape(-1, 8)
+    used = one.stats["fragments"]["nodes_requested"]
+    assert used > 0 and not (words[1 : used + 1, 6] >> 16).any()
+    assert one.stats["antialiasing"] == {"samples": 1}
+    assert one.stats["memory"]["gbuffer"] == 48 * 48 * 28
+
+
+def _node_masks(method, pixel: int) -> list[int]:
+    """Coverage masks of the nodes in the list of `pixel` (32- or 64-bit links)."""
+    links = np.frombuffer(method._links.read(), np.uint64 if method.link_bytes == 8 else np.uint32)
+    words = np.frombuffer(method._nodes.read(), np.uint32).reshape(-1, 8)
+    n, masks = int(links[pixel]) & 0xFFFFFFFF, []
+    while n:
+        masks.append(int(words[n, 6]) >> 16)
+        n = int(links[method._pixels + n]) & 0xFFFFFFFF
+    return masks
+
+
+def half_screen_scene(alpha: float = 0.5, behind: bool = False) -> Scene:
+    """A quad whose right edge is the screen's vertical centre line (x = 0), optionally a full-screen one behind."""
+    nodes = [Node("left", Transform((-2.0, 0.0, 0.0)), quad_mesh(2.0, 3.0), unlit((1.0, 0.2, 0.1), alpha))]
+    if behind:
+        nodes.append(Node("behind", Transform((0.7, 0.6, -1.0)), quad_mesh(4.0, 4.0), unlit((0.1, 0.9, 0.2), 0.5)))
+    return Scene(camera=_test_camera(), background=(0.05, 0.08, 0.12), nodes=nodes)
+
+
+def test_half_covered_pixel_stores_half_the_samples(aa_renderers):
+    """At 63 px the centre line halves pixel column 31: its node covers 2 of 4 samples, the colour is the mean."""
+    r = aa_renderers(4)
+    if r.samples != 4:
+        pytest.skip(f"the device renders {r.samples} samples for 4")
+    size, row = 63, 31
+    frame = r.render(half_screen_scene(), size, size)
+    masks = _node_masks(r.method, row * size + 31)
+    assert len(masks) == 1 and bin(masks[0]).count("1") == 2, masks
+    assert _node_masks(r.method, row * size + 20) == [0xF]
+    assert _node_masks(r.method, row * size + 40) == []
+    bg, c = np.array([0.05, 0.08, 0.12]), np.array([1.0, 0.2, 0.1])
+    covered = 0.5 * c + 0.5 * bg
+    got = frame.linear[size - 1 - row, 31]
+    assert np.abs(got - 0.5 * (covered + bg)).max() * 255 < 1.0, got
+    assert frame.stats["memory"]["abuffer_node_bytes"] == r.method.node_bytes == 32 + r.method.link_bytes
+    assert frame.stats["memory"]["gbuffer"] == size * size * 28 * 4
+
+
+def test_early_termination_keeps_fragments_of_unsaturated_samples(aa_renderers):
+    """A saturating quad over half a pixel must not hide the fragment behind it at the other half."""
+    r = aa_renderers(4)
+    if r.samples != 4:
+        pytest.skip(f"the device renders {r.samples} samples for 4")
+    size, row = 63, 31
+    frame = r.render(half_screen_scene(alpha=0.9995, behind=True), size, size)
+    assert frame.stats["fragments"]["et_dropped"] > 0  # behind fully covered pixels: dropped
+    bg, a, b = np.array([0.05, 0.08, 0.12]), np.array([1.0, 0.2, 0.1]), np.array([0.1, 0.9, 0.2])
+    left = 0.9995 * a + 0.0005 * bg  # saturated at 0.9995 >= 0.999: the walk stops for these samples
+    right = 0.5 * b + 0.5 * bg
+    got = frame.linear[size - 1 - row, 31]
+    assert np.abs(got - 0.5 * (left + right)).max() * 255 < 1.0, got
+    masks = _node_masks(r.method, row * size + 31)
+    assert len(masks) == 2 and bin(masks[0]).count("1") == 2 and masks[1] == 0xF, masks
+
+
+@pytest.mark.parametrize("method", [m for m in method_ids() if not method_class(m).supports_antialiasing])
+def test_methods_without_coverage_refuse(gl_context, method):
+    """Peeling, counted storage and approximate blends refuse samples > 1, naming the method and the way out."""
+    reason = method_refusal(method_class(method), 4)
+    assert reason and f"'{method}'" in reason and "presort_lf_et" in reason
+    with pytest.raises(UnsupportedMethodError, match=method):
+        Renderer(with_samples(EXACT, 2), ctx=gl_context, method=method)
+
+
+def test_compute_raster_refused_and_auto_takes_hardware(aa_renderers, renderer_factory):
+    """The compute rasterizer has no coverage masks: 'compute' is refused, 'auto' draws in hardware."""
+    with pytest.raises(UnsupportedMethodError, match="coverage"):
+        renderer_factory(with_samples(EXACT, 4), method="presort_lf_et", method_overrides={"raster": "compute"})
+    r = aa_renderers(4)
+    assert r.method.settings["raster"] == "auto"
+    kind, why = r.raster.choose(None, None)
+    assert kind == "hardware" and "coverage" in why
+
+
+def test_sample_counts_validated(gl_context):
+    """Only 1/2/4/8, in a mapping; counts above the device's are refused with its limit."""
+    with pytest.raises(ConfigError, match="antialiasing.samples"):
+        pipeline_from_text("antialiasing: {samples: 3}\npasses: [geometry, light_culling, composite]")
+    with pytest.raises(ConfigError, match="antialiasing"):
+        pipeline_from_text("antialiasing: 4\npasses: [geometry, light_culling, composite]")
+    cfg = pipeline_from_text("antialiasing: {samples: 2}\npasses: [geometry, light_culling, composite]")
+    assert cfg.antialiasing == {"samples": 2}
+    most = device_samples(gl_context)
+    if most >= 8:
+        pytest.skip("the device renders 8 samples")
+    with pytest.raises(UnsupportedMethodError, match=f"at most {most}"):
+        Renderer(with_samples(EXACT, 8), ctx=gl_context)
+
+
+def test_tiled_reference_matches_one_tile(aa_renderers):
+    """The supersampled reference is the same whether rendered in one target or in tiles."""
+    scene = random_quads(3, n=6)
+    whole = supersampled(aa_renderers(1), scene, 40, 40, 4)
+    tiled = supersampled(aa_renderers(1), scene, 40, 40, 4, tile_px=64)
+    assert whole.tiles == 1 and tiled.tiles == 9
+    diff = np.abs(whole.image - tiled.image).max(axis=2)
+    assert np.mean(diff < 1e-3) > 0.995 and diff.mean() < 1e-3
