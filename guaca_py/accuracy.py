@@ -99,3 +99,25 @@ def flip(image: np.ndarray, reference: np.ndarray) -> float | None:
     test = srgb(image).astype(np.float32)
     _, mean, _ = flip_evaluator.evaluate(ref, test, "LDR", applyMagma=False)
     return float(mean)
+
+
+def linear_pipeline(samples: int = 1, threshold: float = 0.999, light_culling: str = "auto"):
+    """The accuracy benchmarks' pipeline: pipelines/exact with culled lights, linear output, `samples` per pixel."""
+    from .pipeline.config import pipeline_from_text
+
+    return pipeline_from_text(
+        f"name: linear_aa{samples}\n"
+        f"transparency: {{method: presort_lf_et, threshold: {threshold}, budget_mb: auto}}\n"
+        f"antialiasing: {{samples: {samples}}}\n"
+        f"passes: [geometry, {{light_culling: {{mode: {light_culling}}}}}, composite]\n",
+        f"<linear pipeline, {samples} samples>",
+    )
+
+
+def edge_pixels(reference: Supersampled, tolerance: float = 0.05) -> np.ndarray:
+    """(H, W) bool: pixels whose k x k sub-pixels span more than `tolerance` (linear) in a channel.
+
+    Smooth shading varies little inside one pixel; a silhouette, a boundary or an intersection
+    crossing the pixel makes its sub-pixels differ: the pixels anti-aliasing is for.
+    """
+    return reference.spread > tolerance

@@ -169,6 +169,7 @@ class Renderer:
             **mvars,
             method_extensions=self.method.extensions() if transparent else "",
             method_fragment_template=self.method.fragment_template() if transparent else "",
+            antialiased=self.samples > 1,  # centroid attributes (antialiasing.samples)
         )
         vert = dict(
             common,
