@@ -125,7 +125,7 @@ class Renderer:
             raise UnsupportedMethodError(f"method '{mid}' cannot run on {self.caps.renderer}: {reason}")
         antialiasing.check_method(cls, self.samples)
         method = cls(method_settings(mid, self.config.transparency, overrides, self.config.source), self.caps)
-        method.samples = self.samples  # coverage masks in its nodes; the compute rasterizer has none
+        method.aa_samples = self.samples  # coverage masks in its nodes; the compute rasterizer has none
         refusal = method.compute_raster_refusal() if method.settings["raster"] == "compute" else None
         if refusal:
             raise UnsupportedMethodError(

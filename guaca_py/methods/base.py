@@ -43,7 +43,7 @@ class TransparencyMethod:
     # antialiasing.samples > 1 (docs/antialiasing.md): nodes carry coverage masks, resolved per sample
     supports_antialiasing: ClassVar[bool] = False
     antialiasing_refusal: ClassVar[str] = "its fragments carry no coverage mask"
-    samples: int = 1  # set by the renderer from antialiasing.samples
+    aa_samples: int = 1  # samples per pixel (antialiasing.samples), set by the renderer
 
     def __init__(self, settings: dict, caps: Capabilities):
         self.settings = settings
@@ -65,9 +65,9 @@ class TransparencyMethod:
 
     def compute_raster_refusal(self) -> str | None:
         """Why this method cannot take compute-rasterized fragments, or None when it can."""
-        if self.samples > 1:
+        if self.aa_samples > 1:
             return (
-                f"the compute rasterizer makes no coverage masks (antialiasing.samples {self.samples}); "
+                f"the compute rasterizer makes no coverage masks (antialiasing.samples {self.aa_samples}); "
                 "with samples > 1 transparent draws go through the hardware rasterizer"
             )
         if self.compute_raster:

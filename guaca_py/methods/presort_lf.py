@@ -233,7 +233,7 @@ class PreSortLF(TransparencyMethod):
             "max_steps": int(self.settings["max_steps"]),
             "subgroup_counts": ballot,
             "subgroup_alloc": ballot and self.path == "64bit",
-            "aa_samples": self.samples,
+            "aa_samples": self.aa_samples,
         }
 
     def extensions(self) -> str:
@@ -266,7 +266,6 @@ class PreSortLF(TransparencyMethod):
             "abuffer_pool_used": (used + 1) * self.node_bytes,
             "abuffer_cull_depth": self._pixels * 4,
             "abuffer_node_bytes": self.node_bytes,  # coverage masks ride in free payload bits: same size
-            "samples": self.samples,
         }
 
     def release(self) -> None:

@@ -1,0 +1,219 @@
+"""Temporal stability along a camera path: flicker on pixels that should not change, and bit identity.
+
+Usage: python benchmarks/temporal_stability.py OUTDIR --scene FILE [--scene FILE ...] [--size 1024]
+                                               [--frames 60] [--degrees 3] [--ref-k 2] [--tolerance 1]
+                                               [--repeat 4] [--methods ID ...] [--samples 4] [--replot]
+Path: --frames poses orbiting the scene camera's target about its up axis by --degrees in all
+(small steps: edges crawl by a fraction of a pixel per frame). Pixels that should not change
+between frames t and t+1: those whose supersampled exact reference (presort_lf at --ref-k x,
+box filtered) changes by less than --tolerance/255 in every channel. Per configuration (every
+method the device runs at 1 sample, presort_lf_et at each --samples): the mean over frame pairs
+of the mean |difference| (1/255, linear output clipped to [0, 1]) on those pixels, the share of
+them that moved by more than --tolerance/255 (flicker), and whether rendering --repeat poses of
+the path again gives bit-identical images (races in overflow, ties, stochastic seeds). Pipeline:
+guaca_py.accuracy.linear_pipeline (threshold 0.999, culled lights, linear output).
+Writes OUTDIR/<scene>/stability.{json,md} and OUTDIR/README.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import shlex
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT)]
+
+from guaca_py import GuacaError, Renderer  # noqa: E402
+from guaca_py.accuracy import linear_pipeline, supersampled  # noqa: E402
+from guaca_py.context import create_context  # noqa: E402
+from guaca_py.methods import method_class, method_ids  # noqa: E402
+from guaca_py.scene.loader import load_scene  # noqa: E402
+
+AA_METHOD = "presort_lf_et"
+REFERENCE_METHOD = "presort_lf"
+
+
+def camera_path(scene, frames: int, degrees: float) -> list:
+    """Scenes whose cameras orbit the target about the up axis, `degrees` in all over `frames` poses."""
+    cam = scene.camera
+    target = np.asarray(cam.target, np.float64)
+    up = np.asarray(cam.up, np.float64)
+    up /= np.linalg.norm(up)
+    offset = np.asarray(cam.position, np.float64) - target
+    out = []
+    for i in range(frames):
+        a = math.radians(degrees) * (i / max(1, frames - 1) - 0.5)
+        # Rodrigues rotation of the eye offset about `up`
+        rot = offset * math.cos(a) + np.cross(up, offset) * math.sin(a) + up * (up @ offset) * (1 - math.cos(a))
+        moved = dataclasses.replace(cam, position=tuple(float(x) for x in target + rot))
+        out.append(dataclasses.replace(scene, camera=moved))
+    return out
+
+
+def diff_255(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Per-pixel largest channel difference in 1/255 of two linear images clipped to [0, 1]."""
+    return np.abs(np.clip(a, 0, 1) - np.clip(b, 0, 1)).max(axis=-1) * 255.0
+
+
+def stable_masks(ctx, poses: list, size: int, k: int, tolerance: float) -> list[np.ndarray]:
+    """Per consecutive pair of poses: pixels whose supersampled exact reference changes by < tolerance/255."""
+    r = Renderer(linear_pipeline(1), ctx=ctx, method=REFERENCE_METHOD)
+    masks, prev = [], None
+    for scene in poses:
+        img = supersampled(r, scene, size, size, k).image
+        if prev is not None:
+            masks.append(diff_255(img, prev) < tolerance)
+        prev = img
+    r.release()
+    return masks
+
+
+def run_config(r: Renderer, poses: list, size: int, masks: list, tolerance: float, repeat: int) -> dict:
+    """Flicker along the path and bit identity of repeated poses for one renderer."""
+    keep = set(np.linspace(0, len(poses) - 1, max(1, repeat)).round().astype(int).tolist())
+    kept, means, moved, prev = {}, [], [], None
+    for i, scene in enumerate(poses):
+        img = r.render(scene, size, size).linear
+        if i in keep:
+            kept[i] = img.copy()
+        if prev is not None:
+            m = masks[i - 1]
+            d = diff_255(img, prev)[m]
+            if d.size:
+                means.append(float(d.mean()))
+                moved.append(float(np.mean(d > tolerance)))
+        prev = img
+    identical, worst = True, 0.0
+    for i in sorted(kept):
+        again = r.render(poses[i], size, size).linear
+        if not np.array_equal(again, kept[i]):
+            identical = False
+            worst = max(worst, float(np.abs(again - kept[i]).max() * 255.0))
+    return {
+        "mean_diff_255": float(np.mean(means)) if means else float("nan"),
+        "flicker_share": float(np.mean(moved)) if moved else float("nan"),
+        "bit_identical": identical,
+        "repeat_max_diff_255": worst,
+        "repeated_poses": sorted(kept),
+    }
+
+
+def run_scene(ctx, caps, path: Path, args) -> dict:
+    """Reference masks, then every configuration, for one scene."""
+    scene = load_scene(path)
+    poses = camera_path(scene, args.frames, args.degrees)
+    t0 = time.perf_counter()
+    masks = stable_masks(ctx, poses, args.size, args.ref_k, args.tolerance)
+    share = float(np.mean([m.mean() for m in masks])) if masks else 0.0
+    print(f"{path.stem}: reference {time.perf_counter() - t0:.1f} s, stable pixels {share:.1%} per pair", flush=True)
+    ids = args.methods or [m for m in method_ids() if method_class(m).unsupported_reason(caps) is None]
+    confs = [(m, m, 1) for m in ids] + [(f"{AA_METHOD} x{n}", AA_METHOD, n) for n in args.samples if n > 1]
+    rows = []
+    for label, mid, n in confs:
+        row = {"label": label, "method": mid, "samples": n, "exact": method_class(mid).exact}
+        t1 = time.perf_counter()
+        try:
+            r = Renderer(linear_pipeline(n), ctx=ctx, method=mid)
+        except GuacaError as exc:
+            row["skipped"] = str(exc)
+            rows.append(row)
+            print(f"  {label}: skipped ({exc})", flush=True)
+            continue
+        try:
+            row["samples"] = r.samples
+            row.update(run_config(r, poses, args.size, masks, args.tolerance, args.repeat))
+        except GuacaError as exc:
+            row["skipped"] = str(exc)
+        finally:
+            r.release()
+        rows.append(row)
+        if "skipped" not in row:
+            print(
+                f"  {label:28s} mean diff {row['mean_diff_255']:7.3f}/255  flicker {row['flicker_share']:7.2%}  "
+                f"bit-identical {row['bit_identical']}  ({time.perf_counter() - t1:.1f} s)",
+                flush=True,
+            )
+    return {
+        "scene": path.stem,
+        "size": args.size,
+        "frames": args.frames,
+        "degrees": args.degrees,
+        "reference": {"method": REFERENCE_METHOD, "k": args.ref_k, "tolerance_255": args.tolerance},
+        "stable_share": share,
+        "rows": rows,
+    }
+
+
+def markdown(rec: dict) -> str:
+    """One scene's table."""
+    ref = rec["reference"]
+    out = [
+        f"# {rec['scene']}: temporal stability, {rec['frames']} frames at {rec['size']}²",
+        "",
+        f"Device: {rec['device']}. Path: orbit of {rec['degrees']}° about the target. Pixels that should not change: "
+        f"reference (`{ref['method']}` {ref['k']}x{ref['k']}, box filtered) moves < {ref['tolerance_255']}/255 "
+        f"between the two frames ({rec['stable_share']:.1%} of pixels per pair on average).",
+        "",
+        f"Command: `{rec['command']}`",
+        "",
+        "| configuration | exact | samples | mean frame-to-frame diff (1/255) | flicker (> tolerance) | bit-identical repeat |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in rec["rows"]:
+        if "skipped" in r:
+            out.append(f"| {r['label']} | | {r['samples']} | skipped: {r['skipped']} | | |")
+            continue
+        ident = "yes" if r["bit_identical"] else f"no (max {r['repeat_max_diff_255']:.2f}/255)"
+        out.append(
+            f"| {r['label']} | {'yes' if r['exact'] else 'no'} | {r['samples']} | {r['mean_diff_255']:.3f} | "
+            f"{r['flicker_share']:.2%} | {ident} |"
+        )
+    return "\n".join(out) + "\n"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("out", type=Path)
+    ap.add_argument("--scene", type=Path, action="append", required=True, help="scene YAML (repeatable)")
+    ap.add_argument("--size", type=int, default=1024)
+    ap.add_argument("--frames", type=int, default=60)
+    ap.add_argument("--degrees", type=float, default=3.0, help="orbit angle over the whole path")
+    ap.add_argument("--ref-k", type=int, default=2, help="supersampling of the reference that decides stable pixels")
+    ap.add_argument("--tolerance", type=float, default=1.0, help="in 1/255: reference change below = should not change")
+    ap.add_argument("--repeat", type=int, default=4, help="poses rendered again for the bit-identity check")
+    ap.add_argument("--methods", nargs="*", help="methods at 1 sample (default: every method the device runs)")
+    ap.add_argument("--samples", nargs="*", type=int, default=[4], help=f"extra sample counts of {AA_METHOD}")
+    ap.add_argument("--replot", action="store_true", help="rebuild the tables from OUTDIR/*/stability.json")
+    args = ap.parse_args(argv)
+    command = "python benchmarks/temporal_stability.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
+    args.out.mkdir(parents=True, exist_ok=True)
+    if args.replot:
+        recs = [json.loads(p.read_text()) for p in sorted(args.out.glob("*/stability.json"))]
+    else:
+        ctx, caps = create_context()
+        recs = []
+        for path in args.scene:
+            rec = run_scene(ctx, caps, path, args)
+            rec.update(device=caps.renderer, command=command)
+            d = args.out / rec["scene"]
+            d.mkdir(exist_ok=True)
+            (d / "stability.json").write_text(json.dumps(rec, indent=1))
+            recs.append(rec)
+    index = ["# Temporal stability", ""]
+    for rec in recs:
+        (args.out / rec["scene"] / "stability.md").write_text(markdown(rec))
+        index.append(f"- [{rec['scene']}]({rec['scene']}/stability.md) ({rec['frames']} frames at {rec['size']}²)")
+    (args.out / "README.md").write_text("\n".join(index) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
