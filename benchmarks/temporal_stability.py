@@ -195,18 +195,16 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     command = "python benchmarks/temporal_stability.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
     args.out.mkdir(parents=True, exist_ok=True)
-    if args.replot:
-        recs = [json.loads(p.read_text()) for p in sorted(args.out.glob("*/stability.json"))]
-    else:
+    if not args.replot:
         ctx, caps = create_context()
-        recs = []
         for path in args.scene:
             rec = run_scene(ctx, caps, path, args)
             rec.update(device=caps.renderer, command=command)
             d = args.out / rec["scene"]
             d.mkdir(exist_ok=True)
             (d / "stability.json").write_text(json.dumps(rec, indent=1))
-            recs.append(rec)
+    # the index lists every scene in OUTDIR, also those of earlier runs
+    recs = [json.loads(p.read_text()) for p in sorted(args.out.glob("*/stability.json"))]
     index = ["# Temporal stability", ""]
     for rec in recs:
         (args.out / rec["scene"] / "stability.md").write_text(markdown(rec))
