@@ -9,7 +9,8 @@ exact methods differ from the reference by their aliasing alone. Reference: pres
 early termination) at --ref-k x the resolution, rendered in tiles of at most --tile px, box filtered.
 Error (linear, clipped to [0, 1], in 1/255): RMSE over all pixels, RMSE over edge pixels (their
 k x k sub-pixels span > 0.05: silhouettes, boundaries, intersections), mean FLIP (sRGB-encoded,
-when flip-evaluator is installed). Time: median of --frames per-pass GPU timer sums after --warmup
+when flip-evaluator is installed; computed in --flip-workers processes while the GPU renders on,
+as one 1024² FLIP takes seconds of CPU). Time: median of --frames per-pass GPU timer sums after --warmup
 (wall time on software rasterizers); a configuration whose first frame exceeds --budget-s is
 measured on fewer frames. Writes OUTDIR/<scene>/accuracy.{json,md,png} and OUTDIR/README.md.
 """
@@ -18,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shlex
 import statistics
 import sys
@@ -71,7 +73,7 @@ def measure(r: Renderer, scene, size: int, warmup: int, frames: int, budget_s: f
     }, last
 
 
-def run_scene(ctx, caps, path: Path, args) -> dict:
+def run_scene(ctx, caps, path: Path, args, pool) -> dict:
     """Reference, then every configuration of one scene; the scene's JSON record."""
     scene = load_scene(path)
     size = args.size
@@ -104,7 +106,7 @@ def run_scene(ctx, caps, path: Path, args) -> dict:
             row["clock"] = clock.summary()
             row["rmse_255"] = rmse_255(img, ref.image)
             row["edge_rmse_255"] = rmse_255(img, ref.image, edges)
-            row["flip"] = flip(img, ref.image)
+            row["flip"] = pool.submit(flip, img, ref.image) if pool is not None else flip(img, ref.image)
             row["fragments"] = frame.stats.get("fragments", {})
             row["raster"] = frame.stats.get("raster", {}).get("why")
             row["memory"] = frame.stats.get("memory", {})
@@ -115,11 +117,14 @@ def run_scene(ctx, caps, path: Path, args) -> dict:
             r.release()
         rows.append(row)
         if "skipped" not in row:
-            fl = f"  FLIP {row['flip']:.4f}" if row["flip"] is not None else ""
+            fl = f"  FLIP {row['flip']:.4f}" if isinstance(row["flip"], float) else ""
             print(
                 f"  {label:28s} {row['ms']:9.3f} ms  RMSE {row['rmse_255']:6.2f}  edge {row['edge_rmse_255']:6.2f}{fl}",
                 flush=True,
             )
+    for row in rows:
+        if hasattr(row.get("flip"), "result"):
+            row["flip"] = row["flip"].result()
     return {
         "scene": path.stem,
         "file": path.name,
@@ -223,22 +228,31 @@ def main(argv=None) -> int:
     ap.add_argument("--budget-s", type=float, default=3.0, help="a slower first frame: measure one frame")
     ap.add_argument("--methods", nargs="*", help="methods at 1 sample (default: every method the device runs)")
     ap.add_argument("--samples", nargs="*", type=int, default=[1, 2, 4, 8], help=f"sample counts of {AA_METHOD}")
+    ap.add_argument("--flip-workers", type=int, default=max(1, (os.cpu_count() or 2) // 2), help="0: inline")
     ap.add_argument("--replot", action="store_true", help="rebuild tables and charts from OUTDIR/*/accuracy.json")
     args = ap.parse_args(argv)
     command = "python benchmarks/accuracy_scenes.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
     args.out.mkdir(parents=True, exist_ok=True)
     if not args.replot:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        # spawned, not forked: the workers need no copy of a process that holds a GL context
+        spawn = multiprocessing.get_context("spawn")
+        pool = ProcessPoolExecutor(args.flip_workers, mp_context=spawn) if args.flip_workers > 0 else None
         ctx, caps = create_context()
         device = caps.renderer
         scenes = sorted(args.scenes.glob("*.yaml"))
         if args.scene_names:
             scenes = [p for p in scenes if p.stem in args.scene_names]
         for path in scenes:
-            rec = run_scene(ctx, caps, path, args)
+            rec = run_scene(ctx, caps, path, args, pool)
             rec.update(device=device, command=command)
             d = args.out / rec["scene"]
             d.mkdir(exist_ok=True)
             (d / "accuracy.json").write_text(json.dumps(rec, indent=1))
+        if pool is not None:
+            pool.shutdown()
     # the index lists every scene in OUTDIR, also those of earlier runs
     recs = [json.loads(p.read_text()) for p in sorted(args.out.glob("*/accuracy.json"))]
     index = ["# Speed against error on real scenes", ""]
