@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
+import shutil
+import subprocess
+
 import numpy as np
 import pytest
 from reference import _test_camera, edge_mask, quad_mesh, reference_of, scene_triangles, unlit
@@ -211,3 +215,45 @@ def test_lit_default_pipeline_with_samples(renderer_factory):
     assert four.stats["antialiasing"]["samples"] >= 4 and not four.stats.get("warnings")
     diff = np.abs(one.image.astype(int) - four.image.astype(int)).max(axis=2)
     assert np.median(diff) <= 2 and diff.max() > 10  # the same picture, different edges
+
+
+@pytest.mark.skipif(shutil.which("glslangValidator") is None, reason="glslangValidator (glslang-tools) not installed")
+@pytest.mark.parametrize("method", ["presort_lf_et", "presort_lf_merge2_et", "presort_cs_et", "post_merge16"])
+def test_gpu_variants_at_8_samples_pass_the_reference_compiler(aa_renderers, tmp_path, monkeypatch, method):
+    """The NVIDIA variants (64-bit insertion, ballots, interlock) at 8 samples, which this device cannot build."""
+    from guaca_py.passes import composite
+    from guaca_py.passes.base import OUTPUT_IMAGE_UNIT
+    from guaca_py.pipeline.drawlist import build_draw_list
+    from guaca_py.renderer import method_settings
+
+    r = aa_renderers(4, method)
+    seen = {}
+    original = composite.CompositePass.compile
+
+    def spy(self, variables, key, template=None):
+        seen.update(variables)
+        return original(self, variables, key, template)
+
+    monkeypatch.setattr(composite.CompositePass, "compile", spy)
+    scene = random_quads(4, n=3)
+    r.render(scene, 16, 16)
+    caps = dataclasses.replace(r.caps, atomic_int64=True, shader_ballot=True, fragment_interlock=True)
+    m = method_class(method)(method_settings(method, {}), caps)
+    m.aa_samples = 8
+    sources = {}
+    monkeypatch.setattr(r.shaders, "program", lambda key, stages, smap=None, label="": stages)
+    monkeypatch.setattr(r, "method", m)
+    monkeypatch.setattr(r, "samples", 8)
+    draw = next(d for d in build_draw_list(scene, r.materials) if d.transparent)
+    for stage, (template, variables) in r.geometry_program(draw, True).items():
+        sources["frag" if stage == "fragment_shader" else "vert"] = r.shaders.render(template, **variables)
+    cvars = dict(seen, method_extensions=m.resolve_extensions(), **m.template_vars())
+    cvars.update(aa_samples=8, output_image_unit=OUTPUT_IMAGE_UNIT, output_format="rgba32f")
+    sources["comp"] = r.shaders.render("composite/shade_composite.comp.j2", **cvars)
+    assert "gl_SampleMaskIn" in sources["frag"] and "sampler2DMS" in sources["comp"]
+    assert "uint64_t" in sources["frag"] or m.link_bytes == 4
+    for stage, text in sources.items():
+        path = tmp_path / f"s.{stage}"
+        path.write_text(text)
+        run = subprocess.run(["glslangValidator", "-S", stage, str(path)], capture_output=True, text=True)
+        assert run.returncode == 0, (stage, run.stdout[-2000:])
