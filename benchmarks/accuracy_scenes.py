@@ -194,12 +194,14 @@ def chart(rec: dict, path: Path) -> None:
     for ax, key, title in ((axes[0], "rmse_255", "RMSE, all pixels"), (axes[1], "edge_rmse_255", "RMSE, edge pixels")):
         aa = sorted((r for r in rows if is_aa(r)), key=lambda r: r["samples"])
         ax.plot([r["ms"] for r in aa], [r[key] for r in aa], "-", color="tab:green", lw=1.5, zorder=1)
-        for r in rows:
+        # neighbours along x get staggered labels: exact methods share one error level
+        for i, r in enumerate(sorted(rows, key=lambda r: r["ms"])):
             marker, color = ("o", "tab:blue") if r["exact"] else ("x", "tab:red")
             if is_aa(r):
                 marker, color = "s", "tab:green"
             ax.scatter(r["ms"], r[key], marker=marker, color=color, zorder=2)
-            ax.annotate(r["label"], (r["ms"], r[key]), fontsize=7, xytext=(3, 3), textcoords="offset points")
+            dy = (-12, 4, 14, -22)[i % 4]
+            ax.annotate(r["label"], (r["ms"], r[key]), fontsize=6, xytext=(3, dy), textcoords="offset points")
         ax.set_xscale("log")
         ax.set_xlabel("frame time (ms, median)")
         ax.set_ylabel("error against the supersampled exact frame (1/255)")
