@@ -6,7 +6,8 @@ Usage: python benchmarks/accuracy_scenes.py OUTDIR --scenes DIR [--size 1024] [-
 Each scene (DIR/*.yaml) renders through guaca_py.accuracy.linear_pipeline: light culling as in
 the default pipeline, no tone mapping or FXAA (linear output), threshold 0.999 for every method, so
 exact methods differ from the reference by their aliasing alone. Reference: presort_lf (exact, no
-early termination) at --ref-k x the resolution, rendered in tiles of at most --tile px, box filtered.
+early termination, hardware rasterizer) at --ref-k x the resolution, in tiles of at most --tile px,
+box filtered.
 Error (linear, clipped to [0, 1], in 1/255): RMSE over all pixels, RMSE over edge pixels (their
 k x k sub-pixels span > 0.05: silhouettes, boundaries, intersections), mean FLIP (sRGB-encoded,
 when flip-evaluator is installed; computed in --flip-workers processes while the GPU renders on,
@@ -78,7 +79,8 @@ def run_scene(ctx, caps, path: Path, args, pool) -> dict:
     scene = load_scene(path)
     size = args.size
     t0 = time.perf_counter()
-    ref_r = Renderer(linear_pipeline(1), ctx=ctx, method=REFERENCE_METHOD)
+    # the hardware rasterizer, as for every sample count: one set of coverage rules throughout
+    ref_r = Renderer(linear_pipeline(1), ctx=ctx, method=REFERENCE_METHOD, method_overrides={"raster": "hardware"})
     ref = supersampled(ref_r, scene, size, size, args.ref_k, args.tile)
     ref_r.release()
     edges = edge_pixels(ref)

@@ -65,7 +65,7 @@ def diff_255(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def stable_masks(ctx, poses: list, size: int, k: int, tolerance: float) -> list[np.ndarray]:
     """Per consecutive pair of poses: pixels whose supersampled exact reference changes by < tolerance/255."""
-    r = Renderer(linear_pipeline(1), ctx=ctx, method=REFERENCE_METHOD)
+    r = Renderer(linear_pipeline(1), ctx=ctx, method=REFERENCE_METHOD, method_overrides={"raster": "hardware"})
     masks, prev = [], None
     for scene in poses:
         img = supersampled(r, scene, size, size, k).image
