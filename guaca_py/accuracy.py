@@ -53,7 +53,7 @@ def supersampled(renderer, scene: Scene, width: int, height: int, k: int, tile_p
     spread = np.zeros((height, width))
     for ty in range(ny):
         for tx in range(nx):
-            c0, c1, r0, r1 = cols[tx], cols[tx + 1], rows[ty], rows[ty + 1]
+            c0, c1, r0, r1 = int(cols[tx]), int(cols[tx + 1]), int(rows[ty]), int(rows[ty + 1])
             if c1 <= c0 or r1 <= r0:
                 continue
             ndc = (2.0 * c0 / width - 1.0, 2.0 * c1 / width - 1.0, 1.0 - 2.0 * r1 / height, 1.0 - 2.0 * r0 / height)
