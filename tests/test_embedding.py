@@ -187,7 +187,9 @@ def test_release_frees_every_gl_object(host_ctx):
             host_ctx.finish()
             after.append(count_gl_objects())
     for kind in ("buffers", "textures", "vertex_arrays", "framebuffers", "queries"):
-        assert after[0][kind] == after[1][kind] == before[kind], kind
+        # nothing is left behind, and a second cycle adds nothing (on the H100 one object of an earlier
+        # test, still alive when counted before, went during the cycles: <= rather than ==)
+        assert after[0][kind] == after[1][kind] <= before[kind], kind
     # Mesa keeps the last compute program that wrote an image alive until another one does
     # (deleted, still referenced): at most one, and a second renderer's cycle does not add one
     assert after[0]["programs"] == after[1]["programs"] <= before["programs"] + 1
