@@ -544,3 +544,18 @@ def test_info_reports_the_storage_rule(capsys, monkeypatch):
     monkeypatch.setenv("GUACA_MAX_BUFFER_MB", "lots")
     assert main(["info"]) == 2
     assert "GUACA_MAX_BUFFER_MB='lots' is not a positive number" in capsys.readouterr().err
+
+
+def test_compute_raster_buffers_follow_the_storage_rule(renderer_factory, monkeypatch):
+    """The compute rasterizer's transformed vertices have no overflow path: past the cap it says so, naming the setting."""
+    from guaca_py.errors import LimitError
+    from guaca_py.scene.loader import load_scene_text
+    from guaca_py.scene.primitives import make_primitive
+
+    monkeypatch.setenv("GUACA_MAX_BUFFER_MB", "0.01")  # 10 KiB per buffer
+    r = renderer_factory("exact", method="presort_lf", method_overrides={"raster": "compute"})
+    scene = load_scene_text(scene_text(stack(1)))
+    scene.nodes[0].mesh = make_primitive("sphere", radius=0.5, segments=64, rings=32)  # ~2k vertices
+    with pytest.raises(LimitError) as err:
+        r.render(scene, 16, 16)  # the frame's own targets fit the cap
+    assert "transparency.raster" in str(err.value) and "raster: hardware" in str(err.value)

@@ -28,6 +28,7 @@ import weakref
 import numpy as np
 
 from ..errors import ConfigError
+from ..limits import require_bytes
 from ..pipeline.frame import mat_bytes
 from ..shaders import SourceMap
 from .material_support import compute_material
@@ -69,6 +70,7 @@ _GROUP = 64  # threads per workgroup of the vertex and setup stages
 _MAX_GROUPS_X = 65535  # the GL minimum of GL_MAX_COMPUTE_WORK_GROUP_COUNT; grids wrap into y
 
 
+_TOO_BIG = "draw this mesh with transparency.raster: hardware, or split it (GUACA_MAX_BUFFER_MB sets the rule)"
 _bounds_cache: dict[int, tuple] = {}  # id(mesh) -> (weak mesh, (min, max))
 
 
@@ -214,6 +216,11 @@ class ComputeRasterizer:
         vertices = max(len(d.mesh.positions) for d in draws)
         large = self._want.pop("large", 0) or max(self.large_capacity, 1024, triangles // 8)
         jobs = self._want.pop("jobs", 0) or max(self.job_capacity, 4096, 4 * tiles)
+        limits = self.renderer.caps.limits
+        if limits is not None:  # the storage rule: queues past it drop (counted, warned), never overflow memory
+            large = max(1, min(large, limits.elements(4)))
+            jobs = max(1, min(jobs, limits.elements(8)))
+        self._require_vertices(vertices)
         if self._state is None:
             self._state = ctx.buffer(reserve=len(STATE_WORDS) * 4)
             self._readback = ctx.buffer(reserve=len(STATE_WORDS) * 4)
@@ -236,8 +243,13 @@ class ComputeRasterizer:
         ctx.memory_barrier()
         self._triangles = 0
 
+    def _require_vertices(self, vertices: int) -> None:
+        """Transformed vertices and the triangle order have no overflow path: they must fit the storage rule."""
+        require_bytes(self.renderer.caps.limits, vertices * VERTEX_RECORD_BYTES, "transparency.raster", _TOO_BIG)
+
     def _fit_order(self, triangles: int) -> None:
         """An order list for draws of up to `triangles` triangles."""
+        require_bytes(self.renderer.caps.limits, triangles * 4, "transparency.raster", _TOO_BIG)
         if triangles > self.order_capacity:
             self._release(self._order)
             self.order_capacity = triangles
@@ -289,6 +301,7 @@ class ComputeRasterizer:
             draws = sorted(draws, key=lambda d: -ranges[d.index][1])
         for d in draws:
             if len(d.mesh.positions) > self.vertex_capacity:  # a later call of the pass with a larger mesh
+                self._require_vertices(len(d.mesh.positions))
                 self._release(self._verts)
                 self.vertex_capacity = len(d.mesh.positions)
                 self._verts = ctx.buffer(reserve=self.vertex_capacity * VERTEX_RECORD_BYTES)
