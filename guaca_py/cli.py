@@ -33,7 +33,13 @@ def _cmd_render(args) -> int:
         k, v = item.split("=", 1)
         # the settings live under the pipeline's `transparency:` key; accept that spelling too
         overrides[k.strip().removeprefix("transparency.")] = _parse_value(v)
-    renderer = Renderer(args.pipeline, method=args.method, method_overrides=overrides, material_paths=args.materials)
+    pipeline = args.pipeline
+    if args.samples is not None:  # antialiasing.samples of the pipeline, overridden
+        from .antialiasing import with_samples
+        from .pipeline.config import load_pipeline
+
+        pipeline = with_samples(load_pipeline(pipeline), args.samples)
+    renderer = Renderer(pipeline, method=args.method, method_overrides=overrides, material_paths=args.materials)
     if args.frames > 1 or args.warmup:
         from .benchmarking import measure
 
@@ -165,6 +171,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--set", action="append", metavar="KEY=VALUE", help="transparency setting, e.g. --set budget_mb=1")
     r.add_argument("--width", type=int)
     r.add_argument("--height", type=int)
+    r.add_argument("--samples", type=int, help="antialiasing samples per pixel (1, 2, 4, 8): overrides the pipeline's")
     r.add_argument("--out", default="out.png", help="output PNG (default out.png)")
     r.add_argument("--stats", help="write per-pass times, counters and memory as JSON")
     r.add_argument("--warmup", type=int, default=0, help="untimed frames before measuring")

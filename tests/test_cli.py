@@ -130,3 +130,15 @@ def test_missing_gl_gives_one_clear_error(monkeypatch):
     with pytest.raises(DeviceError) as err:
         create_context()
     assert "OpenGL 4.5" in str(err.value) and "apt-get install" in str(err.value)
+
+
+def test_samples_option_overrides_the_pipeline(scene_file, tmp_path, capsys):
+    """--samples N renders with N coverage samples (stats say so); a method without coverage refuses it (exit 2)."""
+    out, stats = tmp_path / "o.png", tmp_path / "s.json"
+    args = ["render", str(scene_file), "--pipeline", "exact", "--width", "32", "--height", "32"]
+    assert main([*args, "--samples", "4", "--out", str(out), "--stats", str(stats)]) == 0
+    assert json.loads(stats.read_text())["antialiasing"]["samples"] == 4
+    capsys.readouterr()
+    assert main([*args, "--samples", "4", "--method", "dfb", "--out", str(tmp_path / "b.png")]) == 2
+    err = capsys.readouterr().err
+    assert "dfb" in err and "antialiasing.samples" in err
