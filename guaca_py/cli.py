@@ -150,13 +150,14 @@ def _cmd_methods(args) -> int:
                 mid,
                 "exact" if cls.exact else "approximate",
                 cls.geometry_passes,
+                "yes" if cls.supports_antialiasing else "no",
                 "yes" if reason is None else f"no: {reason}",
                 cls.summary,
             )
         )
-    print(f"{'id':<26}{'kind':<13}{'geometry passes':<17}{'runs here':<12}summary")
+    print(f"{'id':<26}{'kind':<13}{'geometry passes':<17}{'samples > 1':<13}{'runs here':<12}summary")
     for r in rows:
-        print(f"{r[0]:<26}{r[1]:<13}{r[2]:<17}{r[3]:<12}{r[4]}")
+        print(f"{r[0]:<26}{r[1]:<13}{r[2]:<17}{r[3]:<13}{r[4]:<12}{r[5]}")
     return 0
 
 

@@ -115,6 +115,8 @@ def test_python_dash_m_is_the_same_command():
     r = subprocess.run([sys.executable, "-m", "guaca_py", "methods"], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     assert "presort_lf_et" in r.stdout and "exact" in r.stdout
+    rows = {line.split()[0]: line.split() for line in r.stdout.splitlines()[1:]}
+    assert rows["presort_lf_et"][3] == "yes" and rows["dfb"][3] == "no"  # the 'samples > 1' column
 
 
 def test_missing_gl_gives_one_clear_error(monkeypatch):
