@@ -300,11 +300,17 @@ def plot(out: dict, path: Path) -> None:
     ]
     if not scenes:
         return
-    fig, axes = plt.subplots(1, len(scenes), figsize=(4.2 * len(scenes), 4.5), squeeze=False)
-    for ax, stem in zip(axes[0], scenes):
+    cols = min(3, len(scenes))
+    nrows = -(-len(scenes) // cols)
+    height = 0.32 * max(len(out["scenes"][s]) for s in scenes) + 1.5
+    fig, axes = plt.subplots(nrows, cols, figsize=(6.0 * cols, height * nrows), squeeze=False)
+    for ax in axes.flat[len(scenes) :]:
+        ax.axis("off")
+    for ax, stem in zip(axes.flat, scenes):
         rows = {m: r for m, r in out["scenes"][stem].items() if isinstance(r, dict) and "total_ms" in r}
         names = list(rows)
-        ax.barh(names, [rows[m]["total_ms"] for m in names], color="#4c72b0")
+        colors = ["#dd8452" if "(compute)" in m else "#4c72b0" for m in names]  # compute rasterizer: orange
+        ax.barh(names, [rows[m]["total_ms"] for m in names], color=colors)
         paper = out["scenes"][stem]["paper_ms"]
         ax.axvline(paper, color="#c44e52", ls="--", label=f"paper PreSortLF* {paper} ms (GTX 980)")
         ax.axvline(paper / 10, color="#55a868", ls=":", label="target: paper / 10")
@@ -315,6 +321,21 @@ def plot(out: dict, path: Path) -> None:
         ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
+
+
+def replot(files: list[Path], outdir: Path) -> None:
+    """Merge the scene rows of several runs (e.g. one per rasterizer) into one table and chart."""
+    merged: dict = {}
+    for f in files:
+        run = json.loads(f.read_text())
+        if not merged:
+            merged = {k: v for k, v in run.items() if k != "scenes"}
+            merged["command"] = "python3 benchmarks/paper_table.py OUT --replot " + " ".join(str(x) for x in files)
+        for stem, rows in run.get("scenes", {}).items():
+            merged.setdefault("scenes", {}).setdefault(stem, {}).update(rows)
+    (outdir / "paper_table.json").write_text(json.dumps(merged, indent=1, default=str))
+    write_markdown(merged, outdir / "paper_table.md")
+    plot(merged, outdir / "paper_table.png")
 
 
 def main() -> None:
@@ -328,9 +349,13 @@ def main() -> None:
     ap.add_argument("--methods", nargs="*", default=METHODS)
     ap.add_argument("--raster", nargs="*", default=["hardware", "compute"], help="rasterizers of transparent draws")
     ap.add_argument("--skip-stacks", action="store_true")
+    ap.add_argument("--replot", nargs="*", metavar="JSON", help="no rendering: merge these result files into OUTDIR")
     args = ap.parse_args()
     outdir = Path(args.outdir)
     outdir.mkdir(parents=True, exist_ok=True)
+    if args.replot:
+        replot([Path(p) for p in args.replot], outdir)
+        return
     ctx, caps = create_context()
     out = {
         "device": caps.renderer,
