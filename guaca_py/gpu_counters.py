@@ -50,7 +50,8 @@ class CounterBlock:
         self.ctx.copy_buffer(self.buffer, self._initial)
 
     def read(self) -> dict[str, int]:
-        """The counters by name (waits for the GPU work that updates them)."""
+        """The counters by name (waits for the GPU work that updates them); an older stage() is dropped."""
+        self._late_valid = False  # a frame read now: what was set aside before it is older than that
         src = self.buffer
         if not direct_cpu_access():
             self.ctx.copy_buffer(self._staging, self.buffer)

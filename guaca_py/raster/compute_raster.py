@@ -28,6 +28,7 @@ import weakref
 import numpy as np
 
 from ..errors import ConfigError
+from ..gpu_counters import CounterBlock
 from ..limits import require_bytes
 from ..pipeline.frame import mat_bytes
 from ..shaders import SourceMap
@@ -97,8 +98,8 @@ class ComputeRasterizer:
     def __init__(self, renderer):
         self.renderer = renderer
         self.ctx = renderer.ctx
-        self._state = self._readback = self._zeros = self._late = self._verts = self._large = self._jobs = None
-        self._late_valid = False
+        self._state: CounterBlock | None = None  # queue cursors, indirect dispatch arguments, frame totals
+        self._verts = self._large = self._jobs = None
         self._buckets = self._order = None
         self.vertex_capacity = 0
         self.order_capacity = 0  # triangles of the largest draw (the order list)
@@ -222,9 +223,7 @@ class ComputeRasterizer:
             jobs = max(1, min(jobs, limits.elements(8)))
         self._require_vertices(vertices)
         if self._state is None:
-            self._state = ctx.buffer(reserve=len(STATE_WORDS) * 4)
-            self._readback = ctx.buffer(reserve=len(STATE_WORDS) * 4)
-            self._zeros = ctx.buffer(bytes(len(STATE_WORDS) * 4))  # the reset, copied on the GPU
+            self._state = CounterBlock(ctx, STATE_WORDS)
             self._buckets = ctx.buffer(reserve=BUCKETS * 4)
         if vertices > self.vertex_capacity:
             self._release(self._verts)
@@ -239,7 +238,7 @@ class ComputeRasterizer:
             self.job_capacity, self._jobs = jobs, ctx.buffer(reserve=jobs * 8)
         # a GPU copy, not a loop in the args kernel: NVIDIA's compiler refused that loop's store
         # ("lvalue in array access too complex")
-        ctx.copy_buffer(self._state, self._zeros)
+        self._state.reset()
         ctx.memory_barrier()
         self._triangles = 0
 
@@ -310,7 +309,7 @@ class ComputeRasterizer:
             self._verts.bind_to_storage_buffer(8)
             vbo.bind_to_storage_buffer(9)
             ibo.bind_to_storage_buffer(10)
-            self._state.bind_to_storage_buffer(11)
+            self._state.bind(11)
             self._large.bind_to_storage_buffer(12)
             self._jobs.bind_to_storage_buffer(13)
             frame.set_frame_uniforms(vert)
@@ -333,39 +332,32 @@ class ComputeRasterizer:
                 if per_program is not None:
                     per_program(prog)
             setup["gua_large_capacity"] = self.large_capacity
-            setup.run_indirect(self._state, STATE_WORDS.index("setup_x") * 4)
-            ctx.memory_barrier()
-            args["gua_args_mode"], args["gua_capacity"] = 1, self.large_capacity
-            args.run(1)
+            setup.run_indirect(self._state.buffer, STATE_WORDS.index("setup_x") * 4)
             ctx.memory_barrier()
             binner["gua_job_capacity"] = self.job_capacity
-            binner.run_indirect(self._state, STATE_WORDS.index("bin_x") * 4)
-            ctx.memory_barrier()
-            args["gua_args_mode"], args["gua_capacity"] = 2, self.job_capacity
-            args.run(1)
-            ctx.memory_barrier()
-            fine.run_indirect(self._state, STATE_WORDS.index("fine_x") * 4)
-            ctx.memory_barrier()
+            self._queued_stage(args, 1, self.large_capacity, binner, "bin_x")
+            self._queued_stage(args, 2, self.job_capacity, fine, "fine_x")
             self._triangles += d.mesh.triangle_count
+
+    def _queued_stage(self, args, mode: int, capacity: int, prog, dispatch_word: str) -> None:
+        """Clamp the queue the last stage filled to `capacity` (args kernel `mode`), then run `prog` over it."""
+        args["gua_args_mode"], args["gua_capacity"] = mode, capacity
+        args.run(1)
+        self.ctx.memory_barrier()
+        prog.run_indirect(self._state.buffer, STATE_WORDS.index(dispatch_word) * 4)
+        self.ctx.memory_barrier()
 
     def finish(self, frame) -> bool:
         """Totals into frame.stats; after an overflow, grow and ask for the frame again (MAX_REGROW times)."""
         if self._fresh or self._frame is not frame:  # nothing drawn through compute in this pass
             return False
         self._fresh, self._frame = True, None
-        late = frame.late_counters and self._late_valid
+        # a frame loop without read-back reads the previous frame's totals (finished by now) and sets
+        # this frame's aside for the next, so the CPU never waits for this frame here
+        late = self._state.staged() if frame.late_counters else None
+        c = late[0] if late is not None else self._state.read()
         if frame.late_counters:
-            # a frame loop without read-back: the previous frame's totals (finished by now) are read,
-            # this frame's are set aside for the next, so the CPU never waits for this frame here
-            if self._late is None:
-                self._late = self.ctx.buffer(reserve=len(STATE_WORDS) * 4)
-            if late:
-                c = dict(zip(STATE_WORDS, np.frombuffer(self._late.read(), dtype=np.uint32).tolist()))
-            self.ctx.copy_buffer(self._late, self._state)
-        self._late_valid = frame.late_counters  # a frame with read-back leaves nothing for the next
-        if not late:
-            self.ctx.copy_buffer(self._readback, self._state)
-            c = dict(zip(STATE_WORDS, np.frombuffer(self._readback.read(), dtype=np.uint32).tolist()))
+            self._state.stage()
         frame.stats.setdefault("raster", {})["compute"] = {
             "triangles": self._triangles,
             "large_triangles": c["large_total"],
@@ -418,10 +410,9 @@ class ComputeRasterizer:
 
     def release(self) -> None:
         """Free all buffers."""
+        if self._state is not None:
+            self._state.release()
         for b in (
-            self._state,
-            self._readback,
-            self._late,
             self._verts,
             self._large,
             self._jobs,
@@ -429,8 +420,7 @@ class ComputeRasterizer:
             self._order,
         ):
             self._release(b)
-        self._state = self._readback = self._zeros = self._late = self._verts = self._large = self._jobs = None
-        self._late_valid = False
+        self._state = self._verts = self._large = self._jobs = None
         self._buckets = self._order = None
         self.vertex_capacity = self.large_capacity = self.job_capacity = self.order_capacity = 0
         self._fresh, self._frame = True, None
