@@ -218,9 +218,7 @@ class Renderer:
                 if per_program is not None:
                     per_program(prog)
                 last = prog
-            prog["gua_model_matrix"].write(d.model_bytes or mat_bytes(d.world))
-            if "gua_normal_matrix" in prog:
-                prog["gua_normal_matrix"].write(d.normal_bytes or mat_bytes(np.linalg.inv(d.world).T))
+            d.write_transform(prog)
             if "gua_draw_index" in prog:
                 prog["gua_draw_index"] = d.index
             if switched or d.values is not last_values:  # the same instance as the draw before is all set

@@ -25,6 +25,15 @@ class Draw:
     model_bytes: bytes | None = None  # world and inverse-transpose as GL bytes, when a DrawCache made them
     normal_bytes: bytes | None = None
 
+    def write_transform(self, prog) -> None:
+        """Write the model and normal matrices a program uses (the DrawCache's bytes when it made them)."""
+        from .frame import mat_bytes
+
+        if "gua_model_matrix" in prog:
+            prog["gua_model_matrix"].write(self.model_bytes or mat_bytes(self.world))
+        if "gua_normal_matrix" in prog:
+            prog["gua_normal_matrix"].write(self.normal_bytes or mat_bytes(np.linalg.inv(self.world).T))
+
 
 MAX_WORLD = 1.0e7  # float32 positions step by 1 at 1.7e7; llvmpipe's clipper drops triangles past ~1e8
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -63,17 +64,20 @@ class FrameState:
         """Draws whose material instance can produce alpha < 1."""
         return [d for d in self.draws if d.transparent]
 
-    def set_frame_uniforms(self, prog) -> None:
-        """Write the shared camera uniforms a program uses."""
-        vp = self.projection @ self.view
-        values = {
+    @cached_property
+    def _frame_uniform_bytes(self) -> dict[str, bytes]:
+        """The shared camera uniforms as GL bytes, made once per frame (every program of every draw writes them)."""
+        return {
             "gua_view_matrix": mat_bytes(self.view),
             "gua_projection_matrix": mat_bytes(self.projection),
-            "gua_inverse_view_projection": mat_bytes(np.linalg.inv(vp)),
+            "gua_inverse_view_projection": mat_bytes(np.linalg.inv(self.projection @ self.view)),
             "gua_camera_position": np.asarray(self.camera_position, dtype=np.float32).tobytes(),
             "gua_resolution": np.asarray([self.width, self.height], dtype=np.float32).tobytes(),
         }
-        for name, data in values.items():
+
+    def set_frame_uniforms(self, prog) -> None:
+        """Write the shared camera uniforms a program uses."""
+        for name, data in self._frame_uniform_bytes.items():
             if name in prog:
                 prog[name].write(data)
 

@@ -30,7 +30,6 @@ import numpy as np
 from ..errors import ConfigError
 from ..gpu_counters import CounterBlock
 from ..limits import require_bytes
-from ..pipeline.frame import mat_bytes
 from ..shaders import SourceMap
 from .material_support import compute_material
 
@@ -313,9 +312,7 @@ class ComputeRasterizer:
             self._large.bind_to_storage_buffer(12)
             self._jobs.bind_to_storage_buffer(13)
             frame.set_frame_uniforms(vert)
-            vert["gua_model_matrix"].write(mat_bytes(d.world))
-            if "gua_normal_matrix" in vert:
-                vert["gua_normal_matrix"].write(mat_bytes(np.linalg.inv(d.world).T))
+            d.write_transform(vert)
             vert["gua_vertex_count"] = len(d.mesh.positions)
             r._set_material_uniforms(vert, d)
             vert.run(*_grid(len(d.mesh.positions)))
