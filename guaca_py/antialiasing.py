@@ -22,6 +22,12 @@ SETTINGS = {
         "samples per pixel: 1 (no MSAA) or 2/4/8 (multisampled G-buffer, coverage-aware A-buffer)",
         choices=SAMPLE_COUNTS,
     ),
+    "merge_surfaces": Setting(
+        (bool,),
+        False,
+        "partial fragments of one draw in a pixel, disjoint in coverage and within the surface's depth "
+        "slope of each other, share one node (one surface, shaded once); false: one node per primitive",
+    ),
 }
 # Every node packs its mask into the free upper half of payload word 6 (common/payload_pack):
 # the node keeps its size, so memory per fragment is unchanged by antialiasing.
@@ -89,6 +95,51 @@ def _allocated_samples(ctx, samples: int) -> int:
     return _allocated[key]
 
 
+_POSITIONS_VS = """#version 450 core
+void main() { gl_Position = vec4(vec2(gl_VertexID == 1 ? 3.0 : -1.0, gl_VertexID == 2 ? 3.0 : -1.0), 0.0, 1.0); }
+"""
+_POSITIONS_FS = """#version 450 core
+out vec4 gua_position;
+void main() { gua_position = vec4(gl_SamplePosition, 0.0, 1.0); }  // reading it shades per sample
+"""
+_POSITIONS_CS = """#version 450 core
+layout(local_size_x = 1) in;
+uniform sampler2DMS gua_probe;
+layout(std430, binding = 0) buffer GuaPositions { vec2 gua_positions[]; };
+void main() { for (int i = 0; i < textureSamples(gua_probe); ++i) gua_positions[i] = texelFetch(gua_probe, ivec2(0), i).xy; }
+"""
+_positions: dict[tuple[int, int], tuple[tuple[float, float], ...]] = {}
+
+
+def sample_positions(ctx, samples: int) -> tuple[tuple[float, float], ...]:
+    """Where in the pixel (0..1, y up) the device puts each of `samples` samples, in sample order.
+
+    The compute rasterizer tests coverage at the same points as the hardware, so a pixel's samples
+    in the multisampled G-buffer and in the coverage masks it makes are the same samples.
+    """
+    key = (id(ctx), samples)
+    if key not in _positions:
+        tex = ctx.texture((1, 1), 4, dtype="f4", samples=samples)
+        fbo = ctx.framebuffer(color_attachments=[tex])
+        draw = ctx.program(vertex_shader=_POSITIONS_VS, fragment_shader=_POSITIONS_FS)
+        vao = ctx.vertex_array(draw, [])
+        fbo.use()
+        fbo.clear(-1.0, -1.0, 0.0, 0.0)
+        vao.render(vertices=3)
+        read = ctx.compute_shader(_POSITIONS_CS)
+        buf = ctx.buffer(reserve=8 * 64)  # room for every sample the texture really has
+        tex.use(location=0)
+        read["gua_probe"] = 0
+        buf.bind_to_storage_buffer(0)
+        read.run(1, 1, 1)
+        ctx.memory_barrier()
+        xy = np.frombuffer(buf.read(), dtype=np.float32)[: 2 * samples].reshape(samples, 2)
+        _positions[key] = tuple((float(x), float(y)) for x, y in xy)
+        for obj in (read, buf, vao, draw, fbo, tex):
+            obj.release()
+    return _positions[key]
+
+
 def method_refusal(method_cls, samples: int) -> str | None:
     """Why method `method_cls` cannot render with `samples` per pixel, or None when it can."""
     if samples <= 1 or method_cls.supports_antialiasing:
@@ -106,7 +157,8 @@ def check_method(method_cls, samples: int) -> None:
         raise UnsupportedMethodError(reason)
 
 
-def with_samples(config, samples: int):
+def with_samples(config, samples: int, merge_surfaces: bool = False):
     """A copy of PipelineConfig `config` rendering `samples` per pixel."""
-    settings = parse({"samples": samples}, lambda k, r, h: ConfigError(r, config.source, None, f"antialiasing.{k}", h))
+    given = {"samples": samples, "merge_surfaces": merge_surfaces}
+    settings = parse(given, lambda k, r, h: ConfigError(r, config.source, None, f"antialiasing.{k}", h))
     return dataclasses.replace(config, antialiasing=settings)

@@ -88,6 +88,9 @@ class Renderer:
         self.config = load_pipeline(pipeline)
         # samples per pixel the G-buffer and coverage masks hold (a device may round antialiasing.samples up)
         self.samples = antialiasing.check_device(self.ctx, self.config.antialiasing["samples"], self.caps.renderer)
+        # where those samples lie (the compute rasterizer tests coverage there); probed now, as the
+        # probe binds a framebuffer and a storage buffer of its own
+        self.sample_positions = antialiasing.sample_positions(self.ctx, self.samples) if self.samples > 1 else ()
         self.shaders = ShaderLibrary(self.ctx, template_paths)
         self.materials = MaterialRegistry(material_paths)
         self.meshes = MeshCache(self.ctx)
@@ -126,6 +129,7 @@ class Renderer:
         antialiasing.check_method(cls, self.samples)
         method = cls(method_settings(mid, self.config.transparency, overrides, self.config.source), self.caps)
         method.aa_samples = self.samples  # coverage masks in its nodes; the compute rasterizer has none
+        method.aa_merge = self.samples > 1 and bool(self.config.antialiasing.get("merge_surfaces", False))
         refusal = method.compute_raster_refusal() if method.settings["raster"] == "compute" else None
         if refusal:
             raise UnsupportedMethodError(

@@ -92,15 +92,27 @@ def test_one_sample_is_unchanged(aa_renderers, renderer_factory):
     assert one.stats["memory"]["gbuffer"] == 48 * 48 * 28
 
 
-def _node_masks(method, pixel: int) -> list[int]:
-    """Coverage masks of the nodes in the list of `pixel` (32- or 64-bit links)."""
+def _node_masks(method, pixel: int, with_tie: bool = False) -> list:
+    """Coverage masks (or (tie id, mask) pairs) of the nodes in the list of `pixel` (32- or 64-bit links)."""
     links = np.frombuffer(method._links.read(), np.uint64 if method.link_bytes == 8 else np.uint32)
     words = np.frombuffer(method._nodes.read(), np.uint32).reshape(-1, 8)
     n, masks = int(links[pixel]) & 0xFFFFFFFF, []
     while n:
-        masks.append(int(words[n, 6]) >> 16)
+        mask = int(words[n, 6]) >> 16
+        masks.append((int(words[n, 7]), mask) if with_tie else mask)
         n = int(links[method._pixels + n]) & 0xFFFFFFFF
     return masks
+
+
+def _coverage_by_primitive(method, pixels: int) -> list[dict]:
+    """Per pixel: tie id (draw, primitive) -> the samples its fragments cover there."""
+    out = []
+    for p in range(pixels):
+        cover: dict = {}
+        for tie, mask in _node_masks(method, p, with_tie=True):
+            cover[tie] = cover.get(tie, 0) | mask
+        out.append(cover)
+    return out
 
 
 def half_screen_scene(alpha: float = 0.5, behind: bool = False) -> Scene:
@@ -156,14 +168,67 @@ def test_methods_without_coverage_refuse(gl_context, method):
         Renderer(with_samples(EXACT, 2), ctx=gl_context, method=method)
 
 
-def test_compute_raster_refused_and_auto_takes_hardware(aa_renderers, renderer_factory):
-    """The compute rasterizer has no coverage masks: 'compute' is refused, 'auto' draws in hardware."""
-    with pytest.raises(UnsupportedMethodError, match="coverage"):
-        renderer_factory(with_samples(EXACT, 4), method="presort_lf_et", method_overrides={"raster": "compute"})
-    r = aa_renderers(4)
-    assert r.method.settings["raster"] == "auto"
-    kind, why = r.raster.choose(None, None)
-    assert kind == "hardware" and "coverage" in why
+def test_compute_raster_makes_the_hardware_coverage(renderer_factory):
+    """raster: compute tests coverage at the device's sample points: same masks, same image as the hardware."""
+    hw = renderer_factory(with_samples(EXACT, 4), method="presort_lf_et", method_overrides={"raster": "hardware"})
+    cs = renderer_factory(with_samples(EXACT, 4), method="presort_lf_et", method_overrides={"raster": "compute"})
+    if hw.samples != 4:
+        pytest.skip(f"the device renders {hw.samples} samples for 4")
+    size, row = 63, 31
+    a, b = hw.render(half_screen_scene(), size, size), cs.render(half_screen_scene(), size, size)
+    assert set(b.stats["raster"]["why"]) == {"compute: raster: compute"}, b.stats["raster"]
+    for col in (20, 31, 40):  # inside, on the edge (2 of 4 samples), outside
+        assert _node_masks(cs.method, row * size + col) == _node_masks(hw.method, row * size + col)
+    assert np.abs(a.linear - b.linear).max() * 255 < 1.0
+    scene = random_quads(0)
+    a, b = hw.render(scene, 64, 64), cs.render(scene, 64, 64)
+    assert b.stats["fragments"]["stored"] <= a.stats["fragments"]["stored"]
+    err = np.abs(a.linear - b.linear).max(axis=2) * 255
+    # where quads intersect inside a pixel the order is per fragment, decided at the centroid of
+    # its samples: the two may order a few such pixels differently, and be equally right
+    assert np.mean(err <= 1.0) > 0.98, np.mean(err <= 1.0)
+    ref = supersampled(hw, scene, 64, 64, 8)
+    tris, _, _ = scene_triangles(scene)
+    edges = edge_mask(tris, scene.camera, 64, 64, 0.5)
+    hw_err, cs_err = rmse_255(a.linear, ref.image, edges), rmse_255(b.linear, ref.image, edges)
+    assert cs_err <= 1.1 * hw_err, (cs_err, hw_err)
+    # Mesa llvmpipe may shade one primitive twice in a pixel (two nodes, disjoint masks); the
+    # compute rasterizer makes one fragment per primitive and pixel: the samples each covers agree.
+    # (Without the opaque quad: the compute masks leave out samples behind it, gl_SampleMaskIn
+    # need not; the composite tests each sample's depth either way.)
+    clear = dataclasses.replace(scene, nodes=[n for n in scene.nodes if n.name != "opaque"])
+    hw.render(clear, 64, 64), cs.render(clear, 64, 64)
+    same = [
+        x == y for x, y in zip(_coverage_by_primitive(hw.method, 64 * 64), _coverage_by_primitive(cs.method, 64 * 64))
+    ]
+    # a sample within rounding of an edge may fall on the other side (llvmpipe: 2 pixels of 4096)
+    assert np.mean(same) >= 0.995, (np.mean(same), len(same) - sum(same))
+
+
+def test_surface_merging_joins_the_triangles_of_one_surface(renderer_factory):
+    """merge_surfaces: the two triangles of a quad meet in the pixels of its diagonal as one full node."""
+    size = 48
+    scene = Scene(
+        camera=_test_camera(),
+        background=(0.05, 0.08, 0.12),
+        nodes=[Node("q", Transform((0.0, 0.0, 0.0), (0.0, 0.0, 20.0)), quad_mesh(2.5, 2.5), unlit((1, 0.2, 0.1), 0.5))],
+    )
+    plain = renderer_factory(with_samples(EXACT, 4), method="presort_lf_et")
+    merged = renderer_factory(with_samples(EXACT, 4, merge_surfaces=True), method="presort_lf_et")
+    if plain.samples != 4:
+        pytest.skip(f"the device renders {plain.samples} samples for 4")
+    a, b = plain.render(scene, size, size), merged.render(scene, size, size)
+    fa, fb = a.stats["fragments"], b.stats["fragments"]
+    assert "merged" not in fa and fb["merged"] > size // 2  # about a pixel per diagonal row
+    assert fb["stored"] + fb["merged"] == fa["stored"]  # every fragment is a node or joined one
+    assert np.abs(a.linear - b.linear).max() * 255 < 1.0  # one plane, one colour: the same image
+    masks = [_node_masks(merged.method, p) for p in range(size * size)]
+    assert all(m in ([], [0xF]) or len(m) == 1 for m in masks)  # never two nodes of the quad in a pixel
+    # two layers of one draw (masks overlap) never merge: the random quads are separate draws, and
+    # a pixel's own surface never repeats a sample
+    twice = merged.render(random_quads(3), size, size).stats["fragments"]
+    once = plain.render(random_quads(3), size, size).stats["fragments"]
+    assert twice["stored"] + twice["merged"] == once["stored"]
 
 
 def test_sample_counts_validated(gl_context):
@@ -173,7 +238,7 @@ def test_sample_counts_validated(gl_context):
     with pytest.raises(ConfigError, match="antialiasing"):
         pipeline_from_text("antialiasing: 4\npasses: [geometry, light_culling, composite]")
     cfg = pipeline_from_text("antialiasing: {samples: 2}\npasses: [geometry, light_culling, composite]")
-    assert cfg.antialiasing == {"samples": 2}
+    assert cfg.antialiasing == {"samples": 2, "merge_surfaces": False}
     most = device_samples(gl_context)
     if most >= 8:
         pytest.skip("the device renders 8 samples")

@@ -44,6 +44,7 @@ class TransparencyMethod:
     supports_antialiasing: ClassVar[bool] = False
     antialiasing_refusal: ClassVar[str] = "its fragments carry no coverage mask"
     aa_samples: int = 1  # samples per pixel (antialiasing.samples), set by the renderer
+    aa_merge: bool = False  # antialiasing.merge_surfaces with samples > 1, set by the renderer
 
     def __init__(self, settings: dict, caps: Capabilities):
         self.settings = settings
@@ -65,11 +66,6 @@ class TransparencyMethod:
 
     def compute_raster_refusal(self) -> str | None:
         """Why this method cannot take compute-rasterized fragments, or None when it can."""
-        if self.aa_samples > 1:
-            return (
-                f"the compute rasterizer makes no coverage masks (antialiasing.samples {self.aa_samples}); "
-                "with samples > 1 transparent draws go through the hardware rasterizer"
-            )
         if self.compute_raster:
             return None
         return (

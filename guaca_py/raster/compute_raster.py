@@ -325,6 +325,8 @@ class ComputeRasterizer:
                         prog[k] = v
                 if "gua_draw_index" in prog:
                     prog["gua_draw_index"] = d.index
+                if "gua_sample_pos" in prog:  # coverage at the hardware's sample points
+                    prog["gua_sample_pos"].value = r.sample_positions
                 r._set_material_uniforms(prog, d)
                 if per_program is not None:
                     per_program(prog)
