@@ -1,7 +1,7 @@
 """The guacamole paper's Table 1 on real scenes, plus the stacks and frames that expose slow regimes.
 
 Usage: python benchmarks/paper_table.py OUTDIR [--scenes DIR] [--size 1024] [--frames 8] [--warmup-s 1.5]
-                                        [--only SCENE ...] [--methods ID ...] [--skip-stacks]
+                                        [--only SCENE ...] [--methods ID ...] [--skip-stacks] [--empty-only]
 
 For every scene of the paper's Table 1 found in --scenes (dragons.yaml, sponza_dabrovic_v1/v2.yaml,
 hairball_v1/v2.yaml: see ../shared/scenes/README.md; the hairball is written by make_hairball.py)
@@ -226,6 +226,14 @@ def empty_and_experiment(args, ctx, out: dict) -> None:
     out["empty"] = time_frames(r, empty, args.size, 0.5, args.frames)
     r.release()
     progress(f"empty frame: {out['empty']['total_ms']:.4f} ms GPU, loop wall {out['empty']['loop_wall_ms']:.3f} ms")
+    progress(f"empty frame passes: {out['empty']['passes_ms']}")
+    if args.empty_only:  # the same frame with every pass separate (tone mapping not fused into the composite)
+        r = Renderer("default", ctx=ctx, fuse_passes=False, **_OWN)
+        out["empty_unfused"] = time_frames(r, empty, args.size, 0.5, args.frames)
+        r.release()
+        progress(f"empty frame, passes not fused: {out['empty_unfused']['total_ms']:.4f} ms GPU")
+        progress(f"empty frame, passes not fused: {out['empty_unfused']['passes_ms']}")
+        return
     for label, value in (("staged", "0"), ("direct", "1")):
         os.environ["GUACA_DIRECT_CPU_ACCESS"] = value
         r = make_renderer(ctx, "presort_lf_et", "hardware")  # fresh buffers for each access pattern
@@ -349,6 +357,9 @@ def main() -> None:
     ap.add_argument("--methods", nargs="*", default=METHODS)
     ap.add_argument("--raster", nargs="*", default=["hardware", "compute"], help="rasterizers of transparent draws")
     ap.add_argument("--skip-stacks", action="store_true")
+    ap.add_argument(
+        "--empty-only", action="store_true", help="only the empty frame (with and without pass fusion); JSON only"
+    )
     ap.add_argument("--replot", nargs="*", metavar="JSON", help="no rendering: merge these result files into OUTDIR")
     args = ap.parse_args()
     outdir = Path(args.outdir)
@@ -363,6 +374,10 @@ def main() -> None:
         "command": "python3 benchmarks/paper_table.py " + " ".join(sys.argv[1:]),
         "capabilities": caps.as_dict(),
     }
+    if args.empty_only:
+        empty_and_experiment(args, ctx, out)
+        (outdir / "paper_table.json").write_text(json.dumps(out, indent=1, default=str))
+        return
     if not args.skip_stacks:
         empty_and_experiment(args, ctx, out)
         stack_rows(args, ctx, out)

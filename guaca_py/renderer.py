@@ -62,8 +62,10 @@ class Renderer:
         template_paths: list[str | Path] | None = None,
         disable: tuple[str, ...] = (),
         restore_host_state: bool = True,
+        fuse_passes: bool = True,
     ):
         previous = native().current()  # creating a context makes it current: the host's comes back
+        self.fuse_passes = fuse_passes  # False keeps every pass separate (comparisons, debugging)
         self.owns_context = ctx is None
         if self.owns_context:
             self.ctx, self.caps = create_context(None, disable)  # a new context is current
@@ -116,6 +118,26 @@ class Renderer:
                     "passes",
                 )
             available |= set(p.writes)
+        if self.fuse_passes:
+            self._fuse_passes()
+
+    def _fuse_passes(self) -> None:
+        """Let a pass apply the per-pixel pass right after it to its own output (one full-screen write and read fewer).
+
+        Fused when the later pass is per-pixel, reads only what the earlier one writes, and no pass
+        after them reads that intermediate resource (it is then never made). The default
+        pipeline's composite thus writes the tone-mapped image itself.
+        """
+        for i in range(len(self.passes) - 1):
+            first, second = self.passes[i], self.passes[i + 1]
+            if not (first.accepts_epilogue and first.epilogue is None and first.fused_into is None):
+                continue
+            if not second.per_pixel or len(second.reads) != 1 or second.reads[0] not in first.writes:
+                continue
+            if any(second.reads[0] in later.reads for later in self.passes[i + 2 :]):
+                continue
+            first.set_epilogue(second)
+            second.fused_into = first.name
 
     @on_context
     def set_method(self, mid: str, overrides: dict | None = None) -> None:
@@ -307,6 +329,8 @@ class Renderer:
         t0 = time.perf_counter()
         timers = {}
         for p in self.passes:
+            if p.fused_into is not None:  # an earlier pass did its work (its time is in that pass's)
+                continue
             for _attempt in range(1 + 16):
                 warned = len(frame.stats.get("warnings", []))
                 if stats:
@@ -328,6 +352,15 @@ class Renderer:
         else:  # the previous frame's queries: finished or nearly, so reading them does not stall this one
             frame.stats["passes"] = {name: {"ms": round(t(), 4)} for name, t in self._previous_timers.items()}
             frame.stats["passes_of"] = "previous frame"
+        if any(p.fused_into for p in self.passes):  # in pipeline order; a fused pass's time is in its host's
+            timed = frame.stats["passes"]
+            frame.stats["passes"] = {
+                p.name: timed[p.name] if p.fused_into is None else {"ms": 0.0, "fused_into": p.fused_into}
+                for p in self.passes
+            }
+            for p in self.passes:
+                if p.fused_into is not None:
+                    frame.stats["passes"][p.fused_into]["includes"] = p.name
         self._previous_timers = None if read_back or not stats else timers
         self._frame_index += 1
         frame.stats.setdefault("memory", {}).update(self.method.memory() if frame.transparent_draws else {})

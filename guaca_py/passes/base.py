@@ -17,10 +17,30 @@ class Pass:
     reads: ClassVar[tuple[str, ...]] = ()
     writes: ClassVar[tuple[str, ...]] = ()
     SETTINGS: ClassVar[dict[str, Setting]] = {}
+    # A per-pixel pass maps its one read to its one write pixel by pixel (no neighbours, no other
+    # input), so the pass writing that read may apply it to its own output instead (Renderer
+    # fuses them when the pipeline is built, see Renderer._fuse_passes).
+    per_pixel: ClassVar[bool] = False
+    # Whether this pass can take a per-pixel pass as an epilogue of its output (see set_epilogue).
+    accepts_epilogue: ClassVar[bool] = False
 
     def __init__(self, renderer, settings: dict):
         self.renderer = renderer
         self.settings = settings
+        self.fused_into: str | None = None  # set when an earlier pass does this pass's work
+        self.epilogue: Pass | None = None  # the per-pixel pass this one applies to its output
+
+    def set_epilogue(self, epilogue: Pass) -> None:
+        """Apply the per-pixel pass `epilogue` to this pass's output (it then writes the epilogue's resource)."""
+        raise NotImplementedError
+
+    def epilogue_vars(self) -> dict:
+        """Template variables of a per-pixel pass's GLSL when another pass applies it."""
+        raise NotImplementedError
+
+    def set_epilogue_uniforms(self, prog) -> None:
+        """Uniforms of a per-pixel pass's GLSL in the program of the pass that applies it."""
+        raise NotImplementedError
 
     @property
     def ctx(self):
@@ -34,6 +54,24 @@ class Pass:
     def release(self) -> None:
         """Free GPU resources held between frames."""
 
+
+# glMemoryBarrier bits for a full-screen pass's output image: later passes sample it (texture
+# fetch) or load it as an image, the next frame's dispatch stores to it again (image access), and it
+# is read back (glGetTexImage: texture update), blitted or drawn from (framebuffer), or copied to a
+# pixel buffer. Narrower than all bits (the default of ctx.memory_barrier()): nothing reads the
+# output as a vertex, index, uniform, storage, command or atomic-counter buffer.
+GL_TEXTURE_FETCH_BARRIER_BIT = 0x08
+GL_SHADER_IMAGE_ACCESS_BARRIER_BIT = 0x20
+GL_PIXEL_BUFFER_BARRIER_BIT = 0x80
+GL_TEXTURE_UPDATE_BARRIER_BIT = 0x100
+GL_FRAMEBUFFER_BARRIER_BIT = 0x400
+IMAGE_OUTPUT_BARRIERS = (
+    GL_TEXTURE_FETCH_BARRIER_BIT
+    | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT
+    | GL_PIXEL_BUFFER_BARRIER_BIT
+    | GL_TEXTURE_UPDATE_BARRIER_BIT
+    | GL_FRAMEBUFFER_BARRIER_BIT
+)
 
 OUTPUT_IMAGE_UNIT = 7  # image units below may be bound by methods (A-buffer saturation depth: 0)
 _IMAGE_FORMATS = {"f1": "rgba8", "f2": "rgba16f", "f4": "rgba32f"}
@@ -92,7 +130,7 @@ class FullscreenPass(Pass):
             if "gua_size" in prog:
                 prog["gua_size"] = (frame.width, frame.height)
             prog.run(-(-frame.width // 8), -(-frame.height // 8), 1)
-            self.ctx.memory_barrier()  # later passes sample the result (or read it back)
+            self.ctx.memory_barrier(IMAGE_OUTPUT_BARRIERS)  # later passes sample the result (or read it back)
             return out
         fbo.use()
         self.ctx.disable(self.renderer.moderngl.DEPTH_TEST | self.renderer.moderngl.BLEND)

@@ -8,7 +8,12 @@ from .base import FullscreenPass
 
 
 class CompositePass(FullscreenPass):
-    """Full-screen pass producing linear HDR color ('hdr')."""
+    """Full-screen pass producing linear HDR color ('hdr').
+
+    With a per-pixel epilogue (tone mapping right after it, nothing else reading 'hdr': see
+    Renderer._fuse_passes) it applies that to each pixel before storing and writes the
+    epilogue's output ('ldr', RGBA8) instead.
+    """
 
     name = "composite"
     reads = ("gbuffer", "transparent", "light_grid")
@@ -16,6 +21,7 @@ class CompositePass(FullscreenPass):
     target_dtype = "f4"
     compute = True
     template = "composite/shade_composite.comp.j2"
+    accepts_epilogue = True
 
     def __init__(self, renderer, settings):
         super().__init__(renderer, settings)
@@ -23,6 +29,13 @@ class CompositePass(FullscreenPass):
         # its 8-bit output resolves (half the bytes to write and read); the linear output stays float32.
         if any(p.name == "tone_mapping" for p in renderer.config.passes):
             self.target_dtype = "f2"
+
+    def set_epilogue(self, epilogue) -> None:
+        """Store `epilogue`'s per-pixel result (display-referred 8-bit) instead of the HDR colour."""
+        self.release()  # the target changes format
+        self.epilogue = epilogue
+        self.writes = epilogue.writes
+        self.target_dtype = "f1"
 
     def program(self, frame):
         """Composite program for this method, light lookup and transparency presence."""
@@ -37,6 +50,9 @@ class CompositePass(FullscreenPass):
             **(method.template_vars() if method else {}),
         )
         tvars["aa_samples"] = self.renderer.samples  # per-sample accumulators where > 1
+        tvars["tone_map"] = self.epilogue is not None
+        if self.epilogue is not None:
+            tvars.update(self.epilogue.epilogue_vars())
         key = ("composite", tuple(sorted((k, str(v)) for k, v in tvars.items())), method.id if method else None)
         return self.compile(tvars, key)
 
@@ -54,6 +70,8 @@ class CompositePass(FullscreenPass):
         if "gua_threshold" in prog:  # compiled out when nothing is composited under the fragments
             prog["gua_threshold"] = threshold
         prog["gua_background"].write(np.asarray(frame.scene.background, dtype=np.float32).tobytes())
+        if self.epilogue is not None:
+            self.epilogue.set_epilogue_uniforms(prog)
         g = frame.resources["gbuffer"]
         tex = self.run_fullscreen(
             frame,
@@ -67,8 +85,9 @@ class CompositePass(FullscreenPass):
         )
         if method is not None:
             method.after_composite(frame)
-        frame.resources["hdr"] = tex
-        frame.resources["color"] = tex
+        if method is None and not g["has_opaque"]:  # nothing drawn: the background (or its tone map) everywhere
+            frame.uniform_textures.add(tex.glo)
+        frame.resources[self.writes[0]] = frame.resources["color"] = tex
 
     def _method_geometry(self, frame, method) -> None:
         """Methods that shade while drawing run their geometry passes here, after light culling."""

@@ -19,10 +19,15 @@ class FxaaPass(FullscreenPass):
     }
 
     def execute(self, frame) -> None:
-        """Anti-alias the display image."""
+        """Anti-alias the display image (nothing to do when it holds one colour: it has no edge)."""
+        src = frame.resources["ldr"]
+        if src.glo in frame.uniform_textures:
+            # no luma contrast anywhere: every pixel would store its own texel unchanged
+            frame.stats.setdefault("skipped", {})[self.name] = "the image holds one colour (no edges)"
+            return
         prog = self.program(frame)
         prog["gua_edge_threshold"] = float(self.settings["edge_threshold"])
         if "gua_resolution" in prog:
             prog["gua_resolution"] = (float(frame.width), float(frame.height))
-        tex = self.run_fullscreen(frame, prog, {"gua_input": frame.resources["ldr"]})
+        tex = self.run_fullscreen(frame, prog, {"gua_input": src})
         frame.resources["ldr"] = frame.resources["color"] = tex

@@ -3,13 +3,19 @@
 from __future__ import annotations
 
 import math
+from functools import cached_property
 
 import numpy as np
 
 from ..errors import DeviceError
 from ..gpu_counters import UploadBuffer
 from ..pipeline.settings import Setting, positive
-from .base import Pass
+from .base import (
+    GL_SHADER_IMAGE_ACCESS_BARRIER_BIT,
+    GL_TEXTURE_FETCH_BARRIER_BIT,
+    GL_TEXTURE_UPDATE_BARRIER_BIT,
+    Pass,
+)
 from .light_grid_cpu import compare_grids, exact_tile_lights, grid_shape, unpack_grid
 from .lights import LIGHT_TYPE_CODE, light_table, pack_lights, visible_mask
 
@@ -27,6 +33,9 @@ def _tile_size(v) -> str | None:
     return None if 1 <= v <= 256 else f"must be in 1..256 pixels, got {v}"
 
 
+# The grid is next written by the proxies' image atomics, then read by texelFetch (composite, debug
+# view) or read back (grid_bits): not as a buffer of any kind.
+_GRID_BARRIERS = GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_TEXTURE_FETCH_BARRIER_BIT | GL_TEXTURE_UPDATE_BARRIER_BIT
 CACHE_TILE_BITS_ABOVE = 64  # layers (2048 lights): 'auto' caches a tile's bits per pixel beyond this
 
 
@@ -66,6 +75,8 @@ class LightCullingPass(Pass):
         self._grid_key = None
         self.layers_allocated = 1
         self.packed_lights: list = []  # lights in bit order of the last frame
+        self.grid_skipped: str | None = None  # why the last frame built no grid (mode 'off' aside)
+        self.grids_built = 0  # grids built (clear and proxy dispatches) since the renderer was made
         self._raw_gl = None
         self._vaos: dict = {}
         self.mode, self.mode_note = self._resolve_mode(settings["mode"], renderer.caps)
@@ -156,7 +167,8 @@ class LightCullingPass(Pass):
         self._everywhere.bind(0)
         clear["gua_grid_dims"] = (tw, th, self.layers_allocated)
         clear.run(-(-tw // 8), -(-th // 8), self.layers_allocated)
-        self.ctx.memory_barrier()
+        self.ctx.memory_barrier(_GRID_BARRIERS)
+        self.grids_built += 1
         if n_raster:
             prog = self._proxy_program()
             prog["gua_grid_view_projection"].write(mat_bytes(self._grid_matrix(frame, tw, th)))
@@ -178,7 +190,7 @@ class LightCullingPass(Pass):
             finally:
                 if conservative:
                     self._raw_gl.disable(GL_CONSERVATIVE_RASTERIZATION_NV)
-            self.ctx.memory_barrier()
+            self.ctx.memory_barrier(_GRID_BARRIERS)
 
     def _proxy_program(self):
         dilate = self.mode == "fallback"
@@ -209,14 +221,16 @@ class LightCullingPass(Pass):
         self._lights.upload(data)
         self.packed_lights = lights = [frame.scene.lights[i] for i in idx]
         grid = None
-        if self.mode != "off":
+        self.grid_skipped = self._skip_reason(frame, len(lights)) if self.mode != "off" else None
+        if self.mode != "off" and self.grid_skipped is None:
             self._build_grid(frame, len(lights), n_raster)
             grid = self._grid
         frame.resources["light_grid"] = {
             "buffer": self._lights.buffer,
             "count": len(lights),
             "grid": grid,
-            "layers": -(-len(lights) // 32),
+            # no grid built: no layer to read (the composite then reads no grid texel, stale or not)
+            "layers": -(-len(lights) // 32) if grid is not None else 0,
             "tile_size": self.settings["tile_size"],
         }
         tw, th = grid_shape(frame.width, frame.height, self.settings["tile_size"])
@@ -232,6 +246,8 @@ class LightCullingPass(Pass):
         }
         mem = frame.stats.setdefault("memory", {})
         mem["lights"] = len(data)
+        if self.grid_skipped is not None:
+            stats["grid_skipped"] = self.grid_skipped
         if grid is not None:
             stats.update(
                 {
@@ -251,11 +267,35 @@ class LightCullingPass(Pass):
                 f"{dropped} visible lights over max_lights={self.settings['max_lights']} were not shaded"
             )
 
+    @cached_property
+    def _only_composite_reads_grid(self) -> bool:
+        """Whether the composite is the only pass reading the light grid (debug views read it too)."""
+        return all(p.name == "composite" for p in self.renderer.passes if "light_grid" in p.reads)
+
+    def _skip_reason(self, frame, count: int) -> str | None:
+        """Why this frame needs no light grid, or None: no light to assign, or no surface to shade.
+
+        Nothing is dispatched then (no grid clear, no proxies); the resource says there is no
+        grid, so nothing reads the grid texture's stale bits.
+        """
+        if self.settings["report_accuracy"]:
+            return None  # the grid itself is asked for
+        if count == 0:
+            return "no visible lights"
+        if not frame.draws and self._only_composite_reads_grid:
+            return "nothing to shade (no draws)"
+        return None
+
     # ------------------------------------------------------------------ inspection
     def grid_bits(self) -> np.ndarray:
         """Bool (lights, tiles down, tiles across) read back from the last grid; bit order = packed_lights."""
-        if self._grid is None or self.mode == "off":
-            raise RuntimeError("no light grid: mode 'off' or nothing rendered yet")
+        if self.mode != "off" and self.grid_skipped is not None and not self.packed_lights:
+            tw, th = self._grid_key or (0, 0)
+            return np.zeros((0, th, tw), dtype=bool)  # no lights: no bits
+        if self._grid is None or self.mode == "off" or self.grid_skipped is not None:
+            raise RuntimeError(
+                f"no light grid: mode 'off', nothing rendered yet or the last frame built none ({self.grid_skipped})"
+            )
         tw, th = self._grid_key
         words = np.frombuffer(self._grid.read(), dtype=np.uint32).reshape(self.layers_allocated, th, tw)
         return unpack_grid(words, len(self.packed_lights))
@@ -273,8 +313,11 @@ class LightCullingPass(Pass):
         lg["buffer"].bind_to_storage_buffer(3)
         if "gua_light_count" in prog:
             prog["gua_light_count"] = lg["count"]
-        if lg["grid"] is not None and "gua_light_bits" in prog:
-            lg["grid"].use(location=LIGHT_GRID_UNIT)
+        if "gua_light_bits" in prog:
+            if lg["grid"] is not None:
+                lg["grid"].use(location=LIGHT_GRID_UNIT)
+            # its own unit even without a grid (no sampler type may share a unit with another);
+            # with 0 layers nothing samples it
             prog["gua_light_bits"] = LIGHT_GRID_UNIT
             prog["gua_tile_size"] = lg["tile_size"]
             prog["gua_light_layers"] = lg["layers"]

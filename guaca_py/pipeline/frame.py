@@ -38,6 +38,10 @@ class FrameState:
     # Frame loops without read-back: counters are read a frame late instead of waiting for the GPU
     # (the stats then describe the previous frame, and an overflow grows the pool for the next one)
     late_counters: bool = False
+    # GL names of this frame's textures known to hold one colour in every pixel (the composite of a
+    # frame with nothing drawn; per-pixel passes of such an image): passes that would not change
+    # such an image (FXAA) skip it
+    uniform_textures: set = field(default_factory=set)
 
     @property
     def ctx(self):
