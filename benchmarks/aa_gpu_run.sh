@@ -16,9 +16,11 @@
 # peeling, every approximate method); FULL=1: every method the device runs. Hairballs (15.6M and 59.8M
 # transparent fragments at 1024²; peeling and counted storage take hundreds of ms to seconds a frame):
 # the one-pass A-buffers, unsorted_blend and weighted_blended, also with FULL=1. Accuracy: presort_lf_et at
-# 1/2/4/8 samples first, then the methods; stability: presort_lf_et, then 4 and 8 samples, then the rest.
+# 1/2/4/8 samples first, then the methods; stability: presort_lf_et, then 4 and 8 samples (hairballs: 4),
+# then the rest.
 #
-# PART=all (the default) runs both parts one after the other, each with its own deadline.
+# PART=all (the default) runs both parts one after the other, each with its own deadline (~11 min in all:
+# more than one 10-minute slot).
 #
 # Time. Each scene has a budget (--scene-budget-s, reference included): configurations after it is spent
 # are recorded as skipped, so a PART ends within its deadline (PART_S, default 540 s) whatever a scene
@@ -30,21 +32,24 @@
 #     dragons: reference 8x in 16 tiles of 2048² ~7 s (16 x ~0.4 s: 7M fragments, read-back, box filter),
 #       16 configurations ~40 s, retries ~6 s, loading 3 s: ~56 s (budget 90 s)
 #     sponza v1, v2: reference ~7 s, 16 configurations ~40 s: ~47 s each (budget 90 s each)
-#     hairball_v1: reference 8x in 256 tiles of 512² (a 2048² tile would hold ~60M fragments: beyond the
-#       2 GiB pool): presort_lf 64 x 171 ms = 11 s GPU + ~8 s per-tile overhead; 10 configurations
-#       (frames 8-200 ms) ~28 s; loading 3 s: ~50 s (budget 100 s)
-#     hairball_v2: reference 8x, 256 tiles of 512²: 64 x 489 ms = 31 s GPU + 8 s; 9 configurations
-#       (frames 23-500 ms) ~30 s; loading 3 s: ~72 s (budget 130 s)
-#     all five: ~4.5 min + start-up and hairball generation ~0.5 min = ~5 min (at most ~9 min by budgets)
+#     hairball_v1: reference 8x in 256 tiles of 512² (a central 1024² tile would hold ~65M fragments,
+#       at the 2 GiB pool's ~67M nodes): presort_lf 64 x 171 ms = 11 s GPU + ~8 s per-tile overhead;
+#       10 configurations (frames 8-300 ms) ~30 s; loading 3 s: ~55 s (budget 100 s)
+#     hairball_v2: reference 8x, 256 tiles of 512²: 64 x 489 ms = 31 s GPU + 8 s; 4 and 8 samples keep
+#       partly covering fragments that early termination cannot cull (llvmpipe at 48²: 7x the 1-sample
+#       count), so assume presort_lf's ~60M fragments and ~0.5-1 s frames (their first frame grows the
+#       pool: a few re-renders; a first frame over 3 s is timed once); the sample counts ~25 s, the six
+#       methods (23-500 ms) ~17 s, retries ~5 s; loading 3 s: ~90 s (budget 130 s)
+#     all five: ~5 min + start-up and hairball generation ~20 s (at most 9 min: budgets and deadline)
 #   stability, per configuration: 64 frames (60 + 4 repeated) x (frame + ~40 ms read-back and
 #     differences); reference 2x per pose, box filtered (~0.3 s of CPU per pose):
 #     dragons: reference 60 x 0.35 s = 21 s, 9 configurations ~45 s: ~70 s (budget 120 s)
 #     sponza v1, v2: ~60 s each (budget 120 s each)                 -> first three scenes: ~3.5 min
 #     hairball_v1: reference 60 x (4 tiles of 1024², 0.7 s GPU, 0.35 s CPU) = 63 s, 4 configurations
-#       ~22 s: ~90 s (budget 150 s)
-#     hairball_v2: reference 60 x (16 tiles of 512², 2 s GPU, 0.8 s other) = 165 s, 4 configurations
-#       ~40 s: ~210 s (budget 280 s)                                -> hairballs: ~5 min
-#     all five in one PART (~8.5 min) would leave no margin: hence the two commands above.
+#       (4 samples ~0.15 s a frame: 12 s) ~30 s: ~95 s (budget 150 s)
+#     hairball_v2: reference 60 x (16 tiles of 512², 2 s GPU, 0.8 s other) = 165 s, 4 configurations:
+#       4 samples 64 x ~0.9 s = 58 s, the rest ~20 s: ~245 s (budget 280 s) -> hairballs: ~6 min
+#     all five in one PART (~9.5 min) would not fit: hence the two commands above.
 set -uo pipefail
 out=${1:-$OUT}
 part=${PART:-all}
