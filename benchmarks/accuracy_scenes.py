@@ -1,19 +1,25 @@
 """Speed against error on real scenes: every method, and the exact default at 1/2/4/8 samples.
 
 Usage: python benchmarks/accuracy_scenes.py OUTDIR --scenes DIR [--size 1024] [--ref-k 8] [--tile 2048]
-                                           [--frames 5] [--warmup 2] [--budget-s 3] [--methods ID ...]
-                                           [--samples 1 2 4 8] [--scene-names NAME ...] [--replot]
+                                           [--frames 5] [--warmup 2] [--warmup-s 1.5] [--budget-s 3]
+                                           [--scene-budget-s S] [--methods ID ...] [--samples 1 2 4 8]
+                                           [--scene-names NAME ...] [--replot]
 Each scene (DIR/*.yaml) renders through guaca_py.accuracy.linear_pipeline: light culling as in
 the default pipeline, no tone mapping or FXAA (linear output), threshold 0.999 for every method, so
 exact methods differ from the reference by their aliasing alone. Reference: presort_lf (exact, no
 early termination, hardware rasterizer) at --ref-k x the resolution, in tiles of at most --tile px,
-box filtered.
+box filtered (a tile whose fragments overflow the A-buffer pool is reported: use smaller tiles).
 Error (linear, clipped to [0, 1], in 1/255): RMSE over all pixels, RMSE over edge pixels (their
 k x k sub-pixels span > 0.05: silhouettes, boundaries, intersections), mean FLIP (sRGB-encoded,
 when flip-evaluator is installed; computed in --flip-workers processes while the GPU renders on,
-as one 1024² FLIP takes seconds of CPU). Time: median of --frames per-pass GPU timer sums after --warmup
-(wall time on software rasterizers); a configuration whose first frame exceeds --budget-s is
-measured on fewer frames. Writes OUTDIR/<scene>/accuracy.{json,md,png} and OUTDIR/README.md.
+as one 1024² FLIP takes seconds of CPU). Time: median of --frames per-pass GPU timer sums after
+at least --warmup frames and --warmup-s seconds of untimed rendering (wall time on software
+rasterizers, which get no time-based warm-up), with the SM clock sampled; a configuration whose
+median clock was below the maximum is measured again (up to 2 times) and marked in the table if it
+still was. A configuration whose first frame exceeds --budget-s is measured on one frame; once a
+scene has run for --scene-budget-s its remaining configurations are skipped (the sample counts run
+first, and the first configuration always runs).
+Writes OUTDIR/<scene>/accuracy.{json,md,png} and OUTDIR/README.md.
 """
 
 from __future__ import annotations
@@ -30,7 +36,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
 
-from gpu_clock import ClockSampler  # noqa: E402
+from gpu_clock import RETRIES, at_full_clock, max_sm_clock  # noqa: E402
 
 from guaca_py import GuacaError, Renderer  # noqa: E402
 from guaca_py.accuracy import edge_pixels, flip, linear_pipeline, rmse_255, supersampled  # noqa: E402
@@ -40,32 +46,45 @@ from guaca_py.scene.loader import load_scene  # noqa: E402
 
 AA_METHOD = "presort_lf_et"  # the exact default, measured at every sample count
 REFERENCE_METHOD = "presort_lf"  # exact without early termination
+HOLD_S = 0.3  # shortest sampled window of a timed configuration (the clock sampler polls every 100 ms)
 
 
 def configs(caps, methods: list[str] | None, samples: list[int]) -> list[tuple[str, str, int, dict]]:
     """(label, method, samples, overrides): every method the device runs at 1 sample (its defaults), and
     the default at each sample count through the hardware rasterizer (coverage masks need it; x1 too,
-    so the sample counts compare like for like where `raster: auto` would pick the compute rasterizer)."""
+    so the sample counts compare like for like where `raster: auto` would pick the compute rasterizer).
+    The sample counts come first: a scene's time budget cuts the method list, not the anti-aliasing result."""
     ids = methods or [m for m in method_ids() if method_class(m).unsupported_reason(caps) is None]
-    out = [(m, m, 1, {}) for m in ids]
-    out += [(f"{AA_METHOD} hw x{n}", AA_METHOD, n, {"raster": "hardware"}) for n in samples]
-    return out
+    out = [(f"{AA_METHOD} hw x{n}", AA_METHOD, n, {"raster": "hardware"}) for n in samples]
+    return out + [(m, m, 1, {}) for m in ids]
 
 
-def measure(r: Renderer, scene, size: int, warmup: int, frames: int, budget_s: float) -> tuple[dict, object]:
-    """Median per-pass and total ms, and the last frame; fewer frames when one frame exceeds the budget."""
+def warm_up(r: Renderer, scene, size: int, frames: int, seconds: float) -> None:
+    """Untimed frames: at least `frames`, and for `seconds` (the GPU's clock ramps up only under load)."""
+    t_end = time.perf_counter() + seconds
+    n = 0
+    while n < frames or time.perf_counter() < t_end:
+        r.render(scene, size, size, read_back=False)
+        r.ctx.finish()
+        n += 1
+
+
+def timed_frames(r: Renderer, scene, size: int, frames: int, hold_s: float) -> tuple[dict, object]:
+    """Median per-pass and total ms of `frames` frames, and the last frame.
+
+    Untimed frames follow until `hold_s` has passed: the clock sampler polls every 100 ms, and a
+    short measurement would otherwise end before it has seen the GPU run these frames.
+    """
     t0 = time.perf_counter()
-    last = r.render(scene, size, size)
-    if time.perf_counter() - t0 > budget_s:
-        warmup, frames = 0, 1
-    for _ in range(max(0, warmup - 1)):
-        last = r.render(scene, size, size)
     totals, passes = [], {}
     for _ in range(max(1, frames)):
         last = r.render(scene, size, size)
         for name, p in last.stats["passes"].items():
             passes.setdefault(name, []).append(p["ms"])
         totals.append(sum(p["ms"] for p in last.stats["passes"].values()))
+    while time.perf_counter() - t0 < hold_s:
+        r.render(scene, size, size, read_back=False)
+        r.ctx.finish()
     return {
         "ms": statistics.median(totals),
         "pass_ms": {k: statistics.median(v) for k, v in passes.items()},
@@ -74,24 +93,64 @@ def measure(r: Renderer, scene, size: int, warmup: int, frames: int, budget_s: f
     }, last
 
 
+def measure(r: Renderer, scene, size: int, args, warmup_s: float) -> tuple[dict, object]:
+    """Timing of one configuration, and its last frame: warm-up, then --frames timed frames under the clock
+    sampler, both again (up to gpu_clock.RETRIES times) while the sampled clock was below the maximum.
+    A first frame slower than --budget-s: one timed frame, no warm-up (that frame kept the GPU busy)."""
+    t0 = time.perf_counter()
+    r.render(scene, size, size)  # pool growth and shader compilation happen here, untimed
+    slow = time.perf_counter() - t0 > args.budget_s
+    frames = 1 if slow else args.frames
+    warm = None if slow else (lambda: warm_up(r, scene, size, args.warmup - 1, warmup_s))
+    hold_s = HOLD_S if warmup_s > 0 else 0.0
+    (timing, frame), clock, retries = at_full_clock(
+        lambda: timed_frames(r, scene, size, frames, hold_s), warm_up=warm, share=1.0
+    )
+    timing.update(clock=clock.summary(), clock_retries=retries, warmup_s=0.0 if slow else warmup_s)
+    return timing, frame
+
+
+def below_max_clock(clock: dict | None, top: float | None) -> bool:
+    """Whether a row is not known to have run at the maximum SM clock: its median was below `top`, or
+    nothing was sampled on a device that has a maximum. Without a maximum (no nvidia-smi) never."""
+    return top is not None and (clock is None or clock["sm_clock_mhz_median"] < top)
+
+
+def top_clock(rec: dict) -> float | None:
+    """The record's maximum SM clock; records made before it was stored: the highest clock any row sampled."""
+    if "max_sm_clock_mhz" in rec:
+        return rec["max_sm_clock_mhz"]
+    seen = [r["clock"]["sm_clock_mhz_max"] for r in rec["rows"] if r.get("clock")]
+    return max(seen) if seen else None
+
+
 def run_scene(ctx, caps, path: Path, args, pool) -> dict:
-    """Reference, then every configuration of one scene; the scene's JSON record."""
+    """Reference, then every configuration of one scene (until --scene-budget-s); the scene's JSON record."""
+    t0 = time.perf_counter()
     scene = load_scene(path)
     size = args.size
-    t0 = time.perf_counter()
+    # no clock to ramp up on software rasterizers (their frames are timed on the wall clock)
+    warmup_s = args.warmup_s if caps.gpu_timers else 0.0
     # the hardware rasterizer, as for every sample count: one set of coverage rules throughout
     ref_r = Renderer(linear_pipeline(1), ctx=ctx, method=REFERENCE_METHOD, method_overrides={"raster": "hardware"})
     ref = supersampled(ref_r, scene, size, size, args.ref_k, args.tile)
     ref_r.release()
     edges = edge_pixels(ref)
     print(
-        f"{path.stem}: reference {args.ref_k}x ({ref.tiles} tiles) {time.perf_counter() - t0:.1f} s, "
-        f"edge pixels {edges.mean():.1%}",
+        f"{path.stem}: reference {args.ref_k}x ({ref.tiles} tiles of at most {args.tile}²) "
+        f"{time.perf_counter() - t0:.1f} s, edge pixels {edges.mean():.1%}"
+        + (f", OVERFLOW: {ref.overflow} fragments dropped (smaller --tile)" if ref.overflow else ""),
         flush=True,
     )
     rows = []
     for label, mid, n, overrides in configs(caps, args.methods, args.samples):
         row = {"label": label, "method": mid, "samples": n, "exact": method_class(mid).exact, "settings": overrides}
+        # the first configuration runs whatever the reference took: a scene gets at least one row
+        if rows and args.scene_budget_s and time.perf_counter() - t0 > args.scene_budget_s:
+            row["skipped"] = f"scene time budget ({args.scene_budget_s:g} s) spent"
+            rows.append(row)
+            print(f"  {label}: skipped ({row['skipped']})", flush=True)
+            continue
         try:
             r = Renderer(linear_pipeline(n), ctx=ctx, method=mid, method_overrides=overrides or None)
         except GuacaError as exc:  # a sample count or method this device refuses: recorded, not fatal
@@ -100,12 +159,10 @@ def run_scene(ctx, caps, path: Path, args, pool) -> dict:
             print(f"  {label}: skipped ({exc})", flush=True)
             continue
         try:
-            with ClockSampler() as clock:
-                timing, frame = measure(r, scene, size, args.warmup, args.frames, args.budget_s)
+            timing, frame = measure(r, scene, size, args, warmup_s)
             img = frame.linear
             row.update(timing)
             row["samples"] = r.samples
-            row["clock"] = clock.summary()
             row["rmse_255"] = rmse_255(img, ref.image)
             row["edge_rmse_255"] = rmse_255(img, ref.image, edges)
             row["flip"] = pool.submit(flip, img, ref.image) if pool is not None else flip(img, ref.image)
@@ -120,8 +177,11 @@ def run_scene(ctx, caps, path: Path, args, pool) -> dict:
         rows.append(row)
         if "skipped" not in row:
             fl = f"  FLIP {row['flip']:.4f}" if isinstance(row["flip"], float) else ""
+            mhz = f"  {row['clock']['sm_clock_mhz_median']} MHz" if row["clock"] else ""
+            again = f" ({row['clock_retries']} retries)" if row["clock_retries"] else ""
             print(
-                f"  {label:28s} {row['ms']:9.3f} ms  RMSE {row['rmse_255']:6.2f}  edge {row['edge_rmse_255']:6.2f}{fl}",
+                f"  {label:28s} {row['ms']:9.3f} ms  RMSE {row['rmse_255']:6.2f}  edge {row['edge_rmse_255']:6.2f}"
+                f"{fl}{mhz}{again}  [{time.perf_counter() - t0:.0f} s]",
                 flush=True,
             )
     for row in rows:
@@ -131,8 +191,18 @@ def run_scene(ctx, caps, path: Path, args, pool) -> dict:
         "scene": path.stem,
         "file": path.name,
         "size": size,
-        "reference": {"method": REFERENCE_METHOD, "k": args.ref_k, "tiles": ref.tiles, "edge_tolerance": 0.05},
+        "reference": {
+            "method": REFERENCE_METHOD,
+            "k": args.ref_k,
+            "tiles": ref.tiles,
+            "tile_px": args.tile,
+            "overflow": ref.overflow,
+            "edge_tolerance": 0.05,
+        },
         "edge_pixels": int(edges.sum()),
+        "max_sm_clock_mhz": max_sm_clock(),
+        "warmup_s": warmup_s,
+        "scene_budget_s": args.scene_budget_s,
         "rows": rows,
     }
 
@@ -142,34 +212,85 @@ def is_aa(row: dict) -> bool:
     return row["label"].startswith(f"{AA_METHOD} hw x")
 
 
+def clock_line(rec: dict) -> str:
+    """The per-scene page's sentence on the SM clock."""
+    top = top_clock(rec)
+    if top is None:
+        return "SM clock: not sampled (no nvidia-smi; on a software rasterizer times are wall times)."
+    mark = "`*` marks frame times whose median clock was below it (or not sampled)."
+    if "max_sm_clock_mhz" not in rec:
+        return (
+            f"SM clock maximum: {top:g} MHz (the highest clock sampled in this run). This run predates the "
+            f"time-based warm-up and the retries: {mark}"
+        )
+    return (
+        f"SM clock maximum: {top:g} MHz. Each configuration renders for {rec['warmup_s']:g} s before it is timed, "
+        f"and is timed again (up to {RETRIES} times) while its median sampled clock is below the maximum; {mark}"
+    )
+
+
+def cost_ratio(one: dict, four: dict, auto: dict | None, top: float | None) -> str:
+    """The frame-time part of the 4-against-1 sentence; no ratio between rows not both at the maximum clock."""
+    low = [r for r in (one, four) if below_max_clock(r.get("clock"), top)]
+    if low:
+        why = ", ".join(f"{r['label']} at {mhz(r)}" for r in low)
+        return f"frame time: no ratio, not every row ran at the maximum SM clock of {top:g} MHz ({why})."
+    out = f"frame time {four['ms'] / one['ms']:.2f}x (target <= 1.6)"
+    if auto is None:
+        return out + "."
+    if below_max_clock(auto.get("clock"), top):
+        return out + f"; against the 1-sample default (`raster: auto`) no ratio: it ran at {mhz(auto)}."
+    return out + f"; against the 1-sample default (`raster: auto`) {four['ms'] / auto['ms']:.2f}x."
+
+
+def mhz(row: dict) -> str:
+    """A row's median SM clock in words."""
+    return f"{row['clock']['sm_clock_mhz_median']:g} MHz" if row.get("clock") else "an unsampled clock"
+
+
 def markdown(rec: dict, command: str, device: str) -> str:
     """One scene's table."""
     ref = rec["reference"]
+    top = top_clock(rec)
+    overflow = ref.get("overflow", 0)
     out = [
         f"# {rec['scene']}: speed against error at {rec['size']}²",
         "",
-        f"Device: {device}. Reference: `{ref['method']}` at {ref['k']}x ({ref['tiles']} tiles), box filtered. "
-        f"Edge pixels (sub-pixels span > {ref['edge_tolerance']}): {rec['edge_pixels']}.",
+        f"Device: {device}. Reference: `{ref['method']}` at {ref['k']}x ({ref['tiles']} tiles), box filtered"
+        + (f", NOT EXACT: {overflow} fragments dropped by A-buffer overflow" if overflow else "")
+        + f". Edge pixels (sub-pixels span > {ref['edge_tolerance']}): {rec['edge_pixels']}.",
         "Error in 1/255 of the linear output clipped to [0, 1]; time: median frame (sum of pass times).",
+        clock_line(rec),
         "",
         f"Command: `{command}`",
         "",
         "![speed against error](accuracy.png)",
         "",
-        "| configuration | exact | samples | frame ms | RMSE | edge RMSE | FLIP | node B | stored |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| configuration | exact | samples | frame ms | SM MHz | RMSE | edge RMSE | FLIP | node B | stored |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
+    marked = False
     for r in rec["rows"]:
         if "skipped" in r:
-            out.append(f"| {r['label']} | | {r['samples']} | skipped: {r['skipped']} | | | | | |")
+            out.append(f"| {r['label']} | | {r['samples']} | skipped: {r['skipped']} | | | | | | |")
             continue
         fl = f"{r['flip']:.4f}" if r.get("flip") is not None else "—"
         node = r["memory"].get("abuffer_node_bytes", "—")
         stored = r["fragments"].get("stored", "—")
+        if r["fragments"].get("overflow"):  # the pool was at the device's limit: the image lacks these
+            stored = f"{stored} (+{r['fragments']['overflow']} dropped)"
+        star = "*" if below_max_clock(r.get("clock"), top) else ""
+        marked = marked or bool(star)
+        clock = f"{r['clock']['sm_clock_mhz_median']:g}" if r.get("clock") else "—"
         out.append(
-            f"| {r['label']} | {'yes' if r['exact'] else 'no'} | {r['samples']} | {r['ms']:.3f} | "
+            f"| {r['label']} | {'yes' if r['exact'] else 'no'} | {r['samples']} | {r['ms']:.3f}{star} | {clock} | "
             f"{r['rmse_255']:.2f} | {r['edge_rmse_255']:.2f} | {fl} | {node} | {stored} |"
         )
+    if marked:
+        out += [
+            "",
+            f"\\* median SM clock below the maximum {top:g} MHz (or not sampled): not comparable with the others.",
+        ]
     aa = {r["samples"]: r for r in rec["rows"] if is_aa(r) and "skipped" not in r}
     auto = next((r for r in rec["rows"] if r["label"] == AA_METHOD and "skipped" not in r), None)
     if 1 in aa and 4 in aa:
@@ -177,9 +298,8 @@ def markdown(rec: dict, command: str, device: str) -> str:
         out += [
             "",
             f"`{AA_METHOD}` 4 samples against 1 (both through the hardware rasterizer): edge RMSE "
-            f"{one['edge_rmse_255'] / four['edge_rmse_255']:.2f}x lower (target >= 2), frame time "
-            f"{four['ms'] / one['ms']:.2f}x (target <= 1.6)"
-            + (f"; against the 1-sample default (`raster: auto`) {four['ms'] / auto['ms']:.2f}x." if auto else "."),
+            f"{one['edge_rmse_255'] / four['edge_rmse_255']:.2f}x lower (target >= 2); "
+            + cost_ratio(one, four, auto, top),
         ]
     return "\n".join(out) + "\n"
 
@@ -228,8 +348,14 @@ def main(argv=None) -> int:
     ap.add_argument("--ref-k", type=int, default=8, help="reference supersampling factor (4 or 8)")
     ap.add_argument("--tile", type=int, default=2048, help="largest reference tile side in px")
     ap.add_argument("--frames", type=int, default=5)
-    ap.add_argument("--warmup", type=int, default=2)
+    ap.add_argument("--warmup", type=int, default=2, help="untimed frames at least (the first included)")
+    ap.add_argument(
+        "--warmup-s", type=float, default=1.5, help="untimed rendering before timing (GPU timers only: the clock ramps)"
+    )
     ap.add_argument("--budget-s", type=float, default=3.0, help="a slower first frame: measure one frame")
+    ap.add_argument(
+        "--scene-budget-s", type=float, default=0.0, help="per scene (reference included): later configurations skipped"
+    )
     ap.add_argument("--methods", nargs="*", help="methods at 1 sample (default: every method the device runs)")
     ap.add_argument("--samples", nargs="*", type=int, default=[1, 2, 4, 8], help=f"sample counts of {AA_METHOD}")
     ap.add_argument("--flip-workers", type=int, default=max(1, (os.cpu_count() or 2) // 2), help="0: inline")
@@ -264,7 +390,10 @@ def main(argv=None) -> int:
         d = args.out / rec["scene"]
         (d / "accuracy.md").write_text(markdown(rec, rec["command"], rec["device"]))
         chart(rec, d / "accuracy.png")
-        index.append(f"- [{rec['scene']}]({rec['scene']}/accuracy.md) ({rec['size']}², {rec['device']})")
+        index.append(
+            f"- [{rec['scene']}]({rec['scene']}/accuracy.md) ({rec['size']}², reference {rec['reference']['k']}x, "
+            f"{rec['device']})"
+        )
     (args.out / "README.md").write_text("\n".join(index) + "\n")
     return 0
 
