@@ -40,7 +40,6 @@ from gpu_clock import RETRIES, at_full_clock, max_sm_clock  # noqa: E402
 
 from guaca_py import GuacaError, Renderer  # noqa: E402
 from guaca_py.accuracy import edge_pixels, flip, linear_pipeline, rmse_255, supersampled  # noqa: E402
-from guaca_py.antialiasing import with_samples  # noqa: E402
 from guaca_py.context import create_context  # noqa: E402
 from guaca_py.methods import method_class, method_ids  # noqa: E402
 from guaca_py.scene.loader import load_scene  # noqa: E402
@@ -53,13 +52,11 @@ HOLD_S = 0.3  # shortest sampled window of a timed configuration (the clock samp
 def configs(caps, methods: list[str] | None, samples: list[int]) -> list[tuple[str, str, int, dict]]:
     """(label, method, samples, overrides): the default at each sample count (`raster: auto`: the compute
     rasterizer on a GPU, with coverage masks), the same through the hardware rasterizer at 1 and 4
-    samples, 4 samples with surface merging, then every other method the device runs at 1 sample.
+    samples, then every other method the device runs at 1 sample.
     The sample counts come first: a scene's time budget cuts the method list, not the anti-aliasing result."""
     ids = methods or [m for m in method_ids() if method_class(m).unsupported_reason(caps) is None]
     out = [(f"{AA_METHOD} x{n}", AA_METHOD, n, {}) for n in samples]
     out += [(f"{AA_METHOD} hw x{n}", AA_METHOD, n, {"raster": "hardware"}) for n in (1, 4) if n in samples]
-    if 4 in samples:
-        out.append((f"{AA_METHOD} x4 merged", AA_METHOD, 4, {"merge_surfaces": True}))
     return out + [(m, m, 1, {}) for m in ids if m != AA_METHOD]
 
 
@@ -156,11 +153,7 @@ def run_scene(ctx, caps, path: Path, args, pool) -> dict:
             print(f"  {label}: skipped ({row['skipped']})", flush=True)
             continue
         try:
-            method_overrides = {k: v for k, v in overrides.items() if k != "merge_surfaces"}
-            pipeline = linear_pipeline(n)
-            if overrides.get("merge_surfaces"):
-                pipeline = with_samples(pipeline, n, merge_surfaces=True)
-            r = Renderer(pipeline, ctx=ctx, method=mid, method_overrides=method_overrides or None)
+            r = Renderer(linear_pipeline(n), ctx=ctx, method=mid, method_overrides=overrides or None)
         except GuacaError as exc:  # a sample count or method this device refuses: recorded, not fatal
             row["skipped"] = str(exc)
             rows.append(row)
@@ -303,7 +296,6 @@ def markdown(rec: dict, command: str, device: str) -> str:
     for one, four, how in (
         (f"{AA_METHOD} x1", f"{AA_METHOD} x4", "the default, `raster: auto`"),
         (f"{AA_METHOD} hw x1", f"{AA_METHOD} hw x4", "both through the hardware rasterizer"),
-        (f"{AA_METHOD} x1", f"{AA_METHOD} x4 merged", "4 samples with `merge_surfaces`, against the default"),
     ):
         if one in done and four in done:
             a, b = done[one], done[four]

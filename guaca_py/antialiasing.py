@@ -22,12 +22,6 @@ SETTINGS = {
         "samples per pixel: 1 (no MSAA) or 2/4/8 (multisampled G-buffer, coverage-aware A-buffer)",
         choices=SAMPLE_COUNTS,
     ),
-    "merge_surfaces": Setting(
-        (bool,),
-        False,
-        "partial fragments of one draw in a pixel, disjoint in coverage and within the surface's depth "
-        "slope of each other, share one node (one surface, shaded once); false: one node per primitive",
-    ),
 }
 # Every node packs its mask into the free upper half of payload word 6 (common/payload_pack):
 # the node keeps its size, so memory per fragment is unchanged by antialiasing.
@@ -157,8 +151,7 @@ def check_method(method_cls, samples: int) -> None:
         raise UnsupportedMethodError(reason)
 
 
-def with_samples(config, samples: int, merge_surfaces: bool = False):
+def with_samples(config, samples: int):
     """A copy of PipelineConfig `config` rendering `samples` per pixel."""
-    given = {"samples": samples, "merge_surfaces": merge_surfaces}
-    settings = parse(given, lambda k, r, h: ConfigError(r, config.source, None, f"antialiasing.{k}", h))
+    settings = parse({"samples": samples}, lambda k, r, h: ConfigError(r, config.source, None, f"antialiasing.{k}", h))
     return dataclasses.replace(config, antialiasing=settings)

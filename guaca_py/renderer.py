@@ -151,7 +151,6 @@ class Renderer:
         antialiasing.check_method(cls, self.samples)
         method = cls(method_settings(mid, self.config.transparency, overrides, self.config.source), self.caps)
         method.aa_samples = self.samples  # coverage masks in its nodes; the compute rasterizer has none
-        method.aa_merge = self.samples > 1 and bool(self.config.antialiasing.get("merge_surfaces", False))
         refusal = method.compute_raster_refusal() if method.settings["raster"] == "compute" else None
         if refusal:
             raise UnsupportedMethodError(

@@ -205,32 +205,6 @@ def test_compute_raster_makes_the_hardware_coverage(renderer_factory):
     assert np.mean(same) >= 0.995, (np.mean(same), len(same) - sum(same))
 
 
-def test_surface_merging_joins_the_triangles_of_one_surface(renderer_factory):
-    """merge_surfaces: the two triangles of a quad meet in the pixels of its diagonal as one full node."""
-    size = 48
-    scene = Scene(
-        camera=_test_camera(),
-        background=(0.05, 0.08, 0.12),
-        nodes=[Node("q", Transform((0.0, 0.0, 0.0), (0.0, 0.0, 20.0)), quad_mesh(2.5, 2.5), unlit((1, 0.2, 0.1), 0.5))],
-    )
-    plain = renderer_factory(with_samples(EXACT, 4), method="presort_lf_et")
-    merged = renderer_factory(with_samples(EXACT, 4, merge_surfaces=True), method="presort_lf_et")
-    if plain.samples != 4:
-        pytest.skip(f"the device renders {plain.samples} samples for 4")
-    a, b = plain.render(scene, size, size), merged.render(scene, size, size)
-    fa, fb = a.stats["fragments"], b.stats["fragments"]
-    assert "merged" not in fa and fb["merged"] > size // 2  # about a pixel per diagonal row
-    assert fb["stored"] + fb["merged"] == fa["stored"]  # every fragment is a node or joined one
-    assert np.abs(a.linear - b.linear).max() * 255 < 1.0  # one plane, one colour: the same image
-    masks = [_node_masks(merged.method, p) for p in range(size * size)]
-    assert all(m in ([], [0xF]) or len(m) == 1 for m in masks)  # never two nodes of the quad in a pixel
-    # two layers of one draw (masks overlap) never merge: the random quads are separate draws, and
-    # a pixel's own surface never repeats a sample
-    twice = merged.render(random_quads(3), size, size).stats["fragments"]
-    once = plain.render(random_quads(3), size, size).stats["fragments"]
-    assert twice["stored"] + twice["merged"] == once["stored"]
-
-
 def test_sample_counts_validated(gl_context):
     """Only 1/2/4/8, in a mapping; counts above the device's are refused with its limit."""
     with pytest.raises(ConfigError, match="antialiasing.samples"):
@@ -238,7 +212,7 @@ def test_sample_counts_validated(gl_context):
     with pytest.raises(ConfigError, match="antialiasing"):
         pipeline_from_text("antialiasing: 4\npasses: [geometry, light_culling, composite]")
     cfg = pipeline_from_text("antialiasing: {samples: 2}\npasses: [geometry, light_culling, composite]")
-    assert cfg.antialiasing == {"samples": 2, "merge_surfaces": False}
+    assert cfg.antialiasing == {"samples": 2}
     most = device_samples(gl_context)
     if most >= 8:
         pytest.skip("the device renders 8 samples")

@@ -10,10 +10,10 @@ from __future__ import annotations
 
 from ..pipeline.settings import Setting, positive
 from .base import LOCK_SETTING, resolve_lock
-from .presort_lf import COUNTERS, MERGED, NODE_PAYLOAD_BYTES, PreSortLF
+from .presort_lf import COUNTERS, NODE_PAYLOAD_BYTES, PreSortLF
 
 # counter words after presort_lf's, in the order of abuffer/variants_common.glsl.j2
-VARIANT_COUNTERS = COUNTERS + ("lock_abandoned", "truncated", "truncated_pixels", MERGED)
+VARIANT_COUNTERS = COUNTERS + ("lock_abandoned", "truncated", "truncated_pixels")
 _INTERLOCK_EXT = "#extension GL_ARB_fragment_shader_interlock : require\n"
 
 
@@ -26,7 +26,6 @@ class ABufferVariant(PreSortLF):
 
     id = ""  # not a method by itself
     counters = VARIANT_COUNTERS
-    surface_merge = False  # their insertions walk no sorted lock-free list (merge2 below does)
 
     def _use_32bit_links(self) -> None:
         """Plain 32-bit node links whatever the device (the method needs no 64-bit atomics)."""
@@ -63,7 +62,6 @@ class PreSortLFMerge2ET(ABufferVariant):
     id = "presort_lf_merge2_et"
     early_termination = True
     extra_slots = 1  # heads of the second list
-    surface_merge = True  # within the list a fragment's tie parity picks
     summary = "two sorted lock-free lists per pixel (half the walk and contention), merged at composite"
 
     def fragment_template(self) -> str:

@@ -44,7 +44,6 @@ class TransparencyMethod:
     supports_antialiasing: ClassVar[bool] = False
     antialiasing_refusal: ClassVar[str] = "its fragments carry no coverage mask"
     aa_samples: int = 1  # samples per pixel (antialiasing.samples), set by the renderer
-    aa_merge: bool = False  # antialiasing.merge_surfaces with samples > 1, set by the renderer
 
     def __init__(self, settings: dict, caps: Capabilities):
         self.settings = settings

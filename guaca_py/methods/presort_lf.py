@@ -11,7 +11,6 @@ from .base import TransparencyMethod
 
 NODE_PAYLOAD_BYTES = 32  # depth + 7 payload words, see abuffer/layout.glsl.j2
 COUNTERS = ("alloc", "unlinked", "et_dropped", "et_culled", "guard")  # abuffer/layout.glsl.j2, same order
-MERGED = "merged"  # fragments merged into a node of their surface (antialiasing.merge_surfaces): last word
 _INT64_EXT = "#extension GL_ARB_gpu_shader_int64 : require\n#extension GL_NV_shader_atomic_int64 : require\n"
 _BALLOT_EXT = "#extension GL_ARB_gpu_shader_int64 : require\n#extension GL_ARB_shader_ballot : require\n"
 
@@ -32,10 +31,7 @@ class PreSortLF(TransparencyMethod):
     summary = "sorted lock-free insertion into per-pixel lists (no early termination)"
     compute_raster = True  # insertion is gua_submit_at(pix, depth, tie): callable from compute kernels
     supports_antialiasing = True  # nodes carry the coverage mask; the composite resolves per sample
-    counters: tuple[str, ...] = COUNTERS + (MERGED,)  # counter words of the counter buffer, in layout order
-    # with samples > 1, a partial fragment may join a node of its own surface during the sorted
-    # walk (abuffer/lockfree_list.glsl.j2); insertions that walk no sorted list cannot
-    surface_merge = True
+    counters: tuple[str, ...] = COUNTERS  # counter words of the counter buffer, in layout order
     extra_slots = 0  # per-pixel link words after the node links (second list heads, locks)
     SETTINGS = {
         "budget_mb": Setting(
@@ -170,8 +166,6 @@ class PreSortLF(TransparencyMethod):
             "guard_abandoned": c["guard"],
             "nodes_requested": requested,
         }
-        if self.aa_merge and self.surface_merge:
-            frame.stats["fragments"]["merged"] = c[MERGED]
         self._last = {"used_nodes": used}
         if c["overflow"]:
             frame.stats.setdefault("warnings", []).append(
@@ -240,8 +234,6 @@ class PreSortLF(TransparencyMethod):
             "subgroup_counts": ballot,
             "subgroup_alloc": ballot and self.path == "64bit",
             "aa_samples": self.aa_samples,
-            "ab_merge": self.aa_merge and self.surface_merge,
-            "merged_counter": self.counters.index(MERGED),
         }
 
     def extensions(self) -> str:

@@ -290,6 +290,7 @@ class ComputeRasterizer:
             self._fresh, self._frame = False, frame
         ctx, r = self.ctx, self.renderer
         frame.resources["gbuffer"]["depth"].use(location=DEPTH_UNIT)
+        any_opaque = any(not d.transparent for d in frame.draws)
         args, order_kernel = self._kernel("raster/args.comp.j2"), self._kernel("raster/order.comp.j2")
         # draws run one after the other: take them in depth order too (see _order_pass)
         ranges = {d.index: self._depth_range(frame, d) for d in draws}
@@ -325,6 +326,8 @@ class ComputeRasterizer:
                         prog[k] = v
                 if "gua_draw_index" in prog:
                     prog["gua_draw_index"] = d.index
+                if "gua_any_opaque" in prog:
+                    prog["gua_any_opaque"] = any_opaque
                 if "gua_sample_pos" in prog:  # coverage at the hardware's sample points
                     prog["gua_sample_pos"].value = r.sample_positions
                 r._set_material_uniforms(prog, d)

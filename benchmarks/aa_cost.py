@@ -1,0 +1,118 @@
+"""What anti-aliasing costs, pass by pass: the default pipeline at 1 and N samples per scene and path.
+
+Usage: python benchmarks/aa_cost.py OUTDIR --scenes DIR [--scene-names NAME ...] [--size 1024]
+                                   [--samples 1 4] [--raster auto hardware] [--paths default 32bit]
+                                   [--warmup-s 1.5] [--frames 8]
+For every scene, rasterizer (`transparency.raster`) and A-buffer insertion path (`default`: the
+device's, `32bit`: 64-bit atomics switched off, so the CAS-linked lists), the default pipeline at
+each sample count: per-pass GPU medians after a warm-up at the maximum SM clock (paper_table.py's
+timing), stored fragments, and each count's cost against 1 sample. Writes OUTDIR/aa_cost.{json,md}.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
+
+from paper_table import progress, time_frames  # noqa: E402
+
+from guaca_py import GuacaError, Renderer  # noqa: E402
+from guaca_py.antialiasing import with_samples  # noqa: E402
+from guaca_py.context import create_context  # noqa: E402
+from guaca_py.pipeline.config import load_pipeline  # noqa: E402
+from guaca_py.scene.loader import load_scene  # noqa: E402
+
+PATHS = {"default": (), "32bit": ("atomic_int64",)}  # capabilities switched off per insertion path
+
+
+def run(args) -> list[dict]:
+    """Every (path, scene, raster, samples) row."""
+    rows = []
+    for path in args.paths:
+        ctx, caps = create_context(None, PATHS[path])
+        progress(f"insertion path {path}: {caps.insertion_path}")
+        for name in args.scene_names:
+            scene = load_scene(args.scenes / f"{name}.yaml")
+            for raster in args.raster:
+                for n in args.samples:
+                    row = {"scene": name, "path": caps.insertion_path, "rasterizer": raster, "samples": n}
+                    try:
+                        r = Renderer(
+                            with_samples(load_pipeline("default"), n),
+                            ctx=ctx,
+                            method_overrides={"raster": raster},
+                            restore_host_state=False,
+                        )
+                        row.update(time_frames(r, scene, args.size, args.warmup_s, args.frames))
+                        r.release()
+                    except GuacaError as exc:
+                        row["skipped"] = str(exc)
+                    rows.append(row)
+                    if "skipped" in row:
+                        progress(f"  {name} {raster} x{n}: skipped ({row['skipped']})")
+                        continue
+                    passes = ", ".join(f"{k} {v:.3f}" for k, v in row["passes_ms"].items())
+                    progress(
+                        f"  {name:20s} {caps.insertion_path} {raster:8s} x{n}: {row['total_ms']:8.3f} ms "
+                        f"({passes}) stored {row['fragments'].get('stored')} clock {row['clock']}"
+                    )
+        ctx.release()
+    return rows
+
+
+def markdown(rows: list[dict], command: str) -> str:
+    """A table per row, with the cost against the same scene, path and rasterizer at 1 sample."""
+    one = {(r["scene"], r["path"], r["rasterizer"]): r for r in rows if r["samples"] == 1 and "skipped" not in r}
+    out = [
+        "# Anti-aliasing cost, pass by pass",
+        "",
+        f"Command: `{command}`",
+        "",
+        "| scene | path | raster | samples | geometry | composite | total GPU ms | against 1 sample | stored | SM MHz |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        head = f"| {r['scene']} | {r['path']} | {r['rasterizer']} | {r['samples']} |"
+        if "skipped" in r:
+            out.append(f"{head} skipped: {r['skipped']} | | | | | |")
+            continue
+        base = one.get((r["scene"], r["path"], r["rasterizer"]))
+        ratio = f"{r['total_ms'] / base['total_ms']:.2f}x" if base else "—"
+        p = r["passes_ms"]
+        clock = (r.get("clock") or {}).get("sm_clock_mhz_median", "—")
+        out.append(
+            f"{head} {p.get('geometry', 0):.3f} | {p.get('composite', 0):.3f} | {r['total_ms']:.3f} | {ratio} | "
+            f"{r['fragments'].get('stored', '—')} | {clock} |"
+        )
+    return "\n".join(out) + "\n"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("out", type=Path)
+    ap.add_argument("--scenes", type=Path, required=True)
+    ap.add_argument("--scene-names", nargs="*", default=["dragons"])
+    ap.add_argument("--size", type=int, default=1024)
+    ap.add_argument("--samples", nargs="*", type=int, default=[1, 4])
+    ap.add_argument("--raster", nargs="*", default=["auto"], choices=["auto", "hardware", "compute"])
+    ap.add_argument("--paths", nargs="*", default=["default"], choices=list(PATHS))
+    ap.add_argument("--warmup-s", type=float, default=1.5)
+    ap.add_argument("--frames", type=int, default=8)
+    args = ap.parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
+    rows = run(args)
+    command = "python benchmarks/aa_cost.py " + shlex.join(argv if argv is not None else sys.argv[1:])
+    (args.out / "aa_cost.json").write_text(json.dumps({"command": command, "rows": rows}, indent=1, default=str))
+    (args.out / "aa_cost.md").write_text(markdown(rows, command))
+    progress(f"wrote {args.out}/aa_cost.md, .json")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
