@@ -114,6 +114,12 @@ _IMAGE = (0x8F3A, 0x8F3B, 0x8F3C, 0x8F3D, 0x8F3E, 0x906E)  # name, level, layere
 _u, _i, _f, _d, _p = ctypes.c_uint, ctypes.c_int, ctypes.c_float, ctypes.c_double, ctypes.c_void_p
 _ub, _i64 = ctypes.c_ubyte, ctypes.c_int64
 _SIGNATURES = {
+    # timer queries (guaca_py/gpu_timer.py: moderngl's Query cannot be deleted)
+    "glGenQueries": (None, [_u, _p]),
+    "glDeleteQueries": (None, [_u, _p]),
+    "glBeginQuery": (None, [_u, _u]),
+    "glEndQuery": (None, [_u]),
+    "glGetQueryObjectui64v": (None, [_u, _u, _p]),
     "glGetIntegerv": (None, [_u, _p]),
     "glGetIntegeri_v": (None, [_u, _u, _p]),
     "glGetInteger64i_v": (None, [_u, _u, _p]),

@@ -12,6 +12,7 @@ from . import antialiasing
 from .context import create_context
 from .errors import ConfigError, GuacaError, UnsupportedMethodError
 from .gpu_resources import MeshCache, TextureCache
+from .gpu_timer import TimerQuery
 from .host_state import ContextGuard, native, on_context
 from .limits import check_resolution
 from .materials import MaterialRegistry
@@ -270,7 +271,7 @@ class Renderer:
             key = (name, self._frame_index % 2)
             q = self._queries.get(key)
             if q is None:
-                q = self._queries[key] = self.ctx.query(time=True)
+                q = self._queries[key] = TimerQuery(self.ctx)
             with q:
                 fn()
             return (lambda: q.elapsed / 1e6), "gpu"
@@ -411,7 +412,9 @@ class Renderer:
         self.raster.release()
         self.meshes.release()
         self.textures.release()
-        self._queries.clear()  # moderngl has no release for queries: reusing them bounds them at two per pass
+        for q in self._queries.values():
+            q.release()
+        self._queries.clear()
         for vao in self._fullscreen_vaos.values():
             vao.release()
         self._fullscreen_vaos.clear()

@@ -344,3 +344,19 @@ def test_release_after_the_shared_context_went_is_harmless():
     owner.release()  # frees the context both used
     guest.release()  # nothing left to free: no error
     assert guest.released and isinstance(owner.ctx.mglo, moderngl.InvalidObject)
+
+
+def test_timer_queries_are_deleted_on_release(host_ctx):
+    """Timer queries are GL objects the renderer deletes (moderngl's Query cannot be released)."""
+    from guaca_py.gpu_timer import TimerQuery
+    from guaca_py.host_state import raw_functions
+
+    with host_ctx:
+        gl = raw_functions()
+        q = TimerQuery(host_ctx)
+        with q:
+            host_ctx.clear(0.1, 0.2, 0.3, 1.0)
+        assert q.elapsed >= 0 and gl.glIsQuery(q.name)
+        name = q.name
+        q.release()
+        assert not gl.glIsQuery(name) and q.name == 0
