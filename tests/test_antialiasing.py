@@ -159,6 +159,24 @@ def test_early_termination_keeps_fragments_of_unsaturated_samples(aa_renderers):
     assert len(masks) == 2 and bin(masks[0]).count("1") == 2 and masks[1] == 0xF, masks
 
 
+def test_early_termination_drops_a_partial_fragment_hidden_at_its_own_samples(aa_renderers):
+    """Per-sample early termination: behind a saturating edge, a fragment covering the same samples is refused."""
+    r = aa_renderers(4)
+    if r.samples != 4:
+        pytest.skip(f"the device renders {r.samples} samples for 4")
+    size, row = 63, 31
+    scene = half_screen_scene(alpha=0.9995)
+    # the same half-screen quad farther away: its right edge projects onto the same centre line
+    scene.nodes.append(Node("behind", Transform((-2.0, 0.0, -1.0)), quad_mesh(2.0, 3.0), unlit((0.1, 0.9, 0.2), 0.5)))
+    frame = r.render(scene, size, size)
+    edge = _node_masks(r.method, row * size + 31)
+    assert len(edge) == 1 and bin(edge[0]).count("1") == 2, edge  # the fragment behind was not stored
+    assert frame.stats["fragments"]["et_dropped"] >= size  # ... nor behind any covered pixel of the edge
+    bg, a = np.array([0.05, 0.08, 0.12]), np.array([1.0, 0.2, 0.1])
+    got = frame.linear[size - 1 - row, 31]
+    assert np.abs(got - 0.5 * ((0.9995 * a + 0.0005 * bg) + bg)).max() * 255 < 1.0, got
+
+
 @pytest.mark.parametrize("method", [m for m in method_ids() if not method_class(m).supports_antialiasing])
 def test_methods_without_coverage_refuse(gl_context, method):
     """Peeling, counted storage and approximate blends refuse samples > 1, naming the method and the way out."""
