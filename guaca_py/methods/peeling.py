@@ -24,7 +24,7 @@ from ..pipeline.settings import Setting
 from .base import TransparencyMethod
 
 # Counter words of peeling/counters.glsl.j2, in order.
-COUNTERS = ("in_range", "peeled", "composited", "overflow", "alloc", "guard", "saturated", "rejected")
+COUNTERS = ("in_range", "peeled", "composited", "overflow", "alloc", "guard", "saturated", "rejected", "left")
 EMPTY_NEAR = "uvec4(GUA_INF, 0u, 0u, 0u)"  # slot clears (GLSL) of step.comp.j2's init step
 EMPTY_NEAR_TIE = "uvec4(0u, 0u, 0u, GUA_TIE_MAX)"
 EMPTY_FAR = "uvec4(GUA_LOWEST, 0u, 0u, 0u)"
@@ -191,6 +191,9 @@ class PeelingMethod(TransparencyMethod):
         frame.bind_lights(prog)
         if "gua_threshold" in prog:
             prog["gua_threshold"] = self.composite_threshold()
+        if "gua_peel_opaque" in prog:
+            frame.resources["gbuffer"]["depth"].use(location=UNIT_OPAQUE)
+            prog["gua_peel_opaque"] = UNIT_OPAQUE
         self._bind_step_storage(frame)
         units = {"acc_front": 0, "acc_back": 1, "bounds": 2, "range": 3}
         for name_, unit in units.items():
@@ -215,7 +218,8 @@ class PeelingMethod(TransparencyMethod):
 
     def _common_uniforms(self, frame) -> dict:
         g = frame.resources["gbuffer"]
-        self._tex["bounds"].use(location=UNIT_BOUNDS)
+        if "bounds" not in self.phase_slots(self._phase):  # never sample a texture the pass renders to
+            self._tex["bounds"].use(location=UNIT_BOUNDS)
         g["depth"].use(location=UNIT_OPAQUE)
         if "range" in self._tex:
             self._tex["range"].use(location=UNIT_RANGE)
@@ -241,9 +245,9 @@ class PeelingMethod(TransparencyMethod):
         # (ONE, ZERO) writes the same colour and keeps every draw.
         ctx.enable(mgl.BLEND)
         ctx.blend_func = (mgl.ONE, mgl.ZERO)
-        all_uniforms = {**self._common_uniforms(frame), **(uniforms or {})}
         self._phase = phase
         try:
+            all_uniforms = {**self._common_uniforms(frame), **(uniforms or {})}
             frame.draw_transparent(all_uniforms, per_program=per_program, order=draws)
         finally:
             self._phase = "composite"
@@ -402,21 +406,26 @@ class DepthPeeling(NearestPayloadPeel):
     def _peel_loop(self, frame, phase: str) -> None:
         """Geometry pass + step until a pass leaves nothing unpeeled; the cap reports what is left."""
         s = self._stats
+        slots = self.phase_slots(phase)
         left = 0
         while True:
             if self.cap_reached():
                 self._truncate(left)
                 break
             self.reset_counters()
-            self.geometry_pass(frame, phase, self.slot_names())
+            self.geometry_pass(frame, phase, slots)
             self.step(frame, phase)
             c = self.read_counters()
             s["iterations"] += 1
             s["peeled"] += c["peeled"]
             s["saturated_pixels"] += c["saturated"]
-            left = c["in_range"] - c["peeled"]  # fragments this pass saw that are still to peel
+            left = self._left(c)
             if left == 0:
                 break
+
+    def _left(self, c: dict) -> int:
+        """Fragments the pass saw that are still to peel."""
+        return c["in_range"] - c["peeled"]
 
 
 class DualDepthPeeling(DepthPeeling):
@@ -440,6 +449,18 @@ class DualDepthPeeling(DepthPeeling):
     def slot_clears(self):
         """Empty front: key +inf; empty back: key -1 (below every fragment)."""
         return [EMPTY_NEAR, EMPTY_NEAR_TIE, EMPTY_FAR, ZERO]
+
+    def phase_slots(self, phase: str) -> list[str]:
+        """The dual pass also reads the bounds in order (slot 0): cheaper than a texture fetch on llvmpipe."""
+        return ["bounds", *self.slot_names()] if phase == "dual" else super().phase_slots(phase)
+
+    def step_vars(self) -> dict:
+        """The init step starts each pixel's upper bound at its opaque depth (the pass tests only the bounds)."""
+        return {"upper_opaque": True}
+
+    def _left(self, c: dict) -> int:
+        """Counted by the step from each pixel's in-range count; saturated pixels have nothing left."""
+        return c["left"]
 
     def render_transparent(self, frame) -> None:
         """Peel from both ends until they meet (or the pass cap stops it)."""
