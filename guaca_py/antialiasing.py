@@ -47,7 +47,7 @@ def device_samples(ctx) -> int:
     return min(int(info.get(k) or 1) for k in keys)
 
 
-def check_device(ctx, samples: int, renderer_name: str) -> int:
+def check_device(ctx, samples: int, renderer_name: str, shaders) -> int:
     """The samples per pixel the device renders for `samples` asked (some round up); refuses too many."""
     most = device_samples(ctx)
     if samples > most:
@@ -55,19 +55,15 @@ def check_device(ctx, samples: int, renderer_name: str) -> int:
             f"antialiasing.samples {samples} cannot run on {renderer_name}: it renders at most {most} samples "
             f"per pixel (GL_MAX_COLOR/DEPTH_TEXTURE_SAMPLES); use samples: {max(s for s in SAMPLE_COUNTS if s <= most)}"
         )
-    return samples if samples <= 1 else _allocated_samples(ctx, samples)
+    return samples if samples <= 1 else _allocated_samples(ctx, samples, shaders)
 
 
-_PROBE = """#version 450 core
-layout(local_size_x = 1) in;
-uniform sampler2DMS gua_probe;
-layout(std430, binding = 0) buffer GuaProbe { int gua_samples; };
-void main() { gua_samples = textureSamples(gua_probe); }
-"""
 _allocated: dict[tuple[int, int], int] = {}
+_positions: dict[tuple[int, int], tuple[tuple[float, float], ...]] = {}
+_MAX_SAMPLES = 64  # room for every sample a texture may really have
 
 
-def _allocated_samples(ctx, samples: int) -> int:
+def _allocated_samples(ctx, samples: int, shaders) -> int:
     """Samples a multisampled texture asked for `samples` really has: the resolve must walk them all.
 
     A device may round a count up (Mesa llvmpipe makes 4 of 2); the coverage masks and the G-buffer
@@ -77,51 +73,43 @@ def _allocated_samples(ctx, samples: int) -> int:
     if key not in _allocated:
         tex = ctx.texture((1, 1), 4, dtype="f2", samples=samples)
         buf = ctx.buffer(reserve=4)
-        prog = ctx.compute_shader(_PROBE)
+        prog = shaders.compute("antialiasing/sample_count.comp.j2")
         tex.use(location=0)
         prog["gua_probe"] = 0
         buf.bind_to_storage_buffer(0)
         prog.run(1, 1, 1)
         ctx.memory_barrier()
         _allocated[key] = max(samples, int(np.frombuffer(buf.read(), dtype=np.int32)[0]))
-        for obj in (prog, buf, tex):
+        for obj in (buf, tex):
             obj.release()
     return _allocated[key]
 
 
-_POSITIONS_VS = """#version 450 core
-void main() { gl_Position = vec4(vec2(gl_VertexID == 1 ? 3.0 : -1.0, gl_VertexID == 2 ? 3.0 : -1.0), 0.0, 1.0); }
-"""
-_POSITIONS_FS = """#version 450 core
-out vec4 gua_position;
-void main() { gua_position = vec4(gl_SamplePosition, 0.0, 1.0); }  // reading it shades per sample
-"""
-_POSITIONS_CS = """#version 450 core
-layout(local_size_x = 1) in;
-uniform sampler2DMS gua_probe;
-layout(std430, binding = 0) buffer GuaPositions { vec2 gua_positions[]; };
-void main() { for (int i = 0; i < textureSamples(gua_probe); ++i) gua_positions[i] = texelFetch(gua_probe, ivec2(0), i).xy; }
-"""
-_positions: dict[tuple[int, int], tuple[tuple[float, float], ...]] = {}
-
-
-def sample_positions(ctx, samples: int) -> tuple[tuple[float, float], ...]:
+def sample_positions(ctx, samples: int, shaders) -> tuple[tuple[float, float], ...]:
     """Where in the pixel (0..1, y up) the device puts each of `samples` samples, in sample order.
 
     The compute rasterizer tests coverage at the same points as the hardware, so a pixel's samples
-    in the multisampled G-buffer and in the coverage masks it makes are the same samples.
+    in the multisampled G-buffer and in the coverage masks it makes are the same samples. Binds a
+    framebuffer, texture unit 0 and storage buffer 0: call it before a frame, not inside one.
     """
     key = (id(ctx), samples)
     if key not in _positions:
         tex = ctx.texture((1, 1), 4, dtype="f4", samples=samples)
         fbo = ctx.framebuffer(color_attachments=[tex])
-        draw = ctx.program(vertex_shader=_POSITIONS_VS, fragment_shader=_POSITIONS_FS)
+        draw = shaders.program(
+            ("antialiasing", "sample_position"),
+            {
+                "vertex_shader": ("antialiasing/sample_position.vert.j2", {}),
+                "fragment_shader": ("antialiasing/sample_position.frag.j2", {}),
+            },
+            label="antialiasing/sample_position",
+        )
         vao = ctx.vertex_array(draw, [])
         fbo.use()
         fbo.clear(-1.0, -1.0, 0.0, 0.0)
         vao.render(vertices=3)
-        read = ctx.compute_shader(_POSITIONS_CS)
-        buf = ctx.buffer(reserve=8 * 64)  # room for every sample the texture really has
+        read = shaders.compute("antialiasing/read_positions.comp.j2")
+        buf = ctx.buffer(reserve=8 * _MAX_SAMPLES)
         tex.use(location=0)
         read["gua_probe"] = 0
         buf.bind_to_storage_buffer(0)
@@ -129,7 +117,7 @@ def sample_positions(ctx, samples: int) -> tuple[tuple[float, float], ...]:
         ctx.memory_barrier()
         xy = np.frombuffer(buf.read(), dtype=np.float32)[: 2 * samples].reshape(samples, 2)
         _positions[key] = tuple((float(x), float(y)) for x, y in xy)
-        for obj in (read, buf, vao, draw, fbo, tex):
+        for obj in (buf, vao, fbo, tex):
             obj.release()
     return _positions[key]
 
