@@ -86,6 +86,15 @@ def _bounds(mesh) -> tuple[np.ndarray, np.ndarray]:
     return hit[1]
 
 
+def sample_span(positions) -> tuple[int, int, int, int]:
+    """Bounds (x0, y0, x1, y1) of the sample points in a pixel, in 1/256 pixel (the centre without samples)."""
+    if not positions:
+        return (128, 128, 128, 128)
+    xs = [round(x * 256) for x, _ in positions]
+    ys = [round(y * 256) for _, y in positions]
+    return (min(xs), min(ys), max(xs), max(ys))
+
+
 def _grid(items: int, group: int = _GROUP) -> tuple[int, int, int]:
     groups = max(1, math.ceil(items / group))
     return min(groups, _MAX_GROUPS_X), math.ceil(groups / _MAX_GROUPS_X), 1
@@ -291,6 +300,7 @@ class ComputeRasterizer:
         ctx, r = self.ctx, self.renderer
         frame.resources["gbuffer"]["depth"].use(location=DEPTH_UNIT)
         any_opaque = any(not d.transparent for d in frame.draws)
+        span = sample_span(r.sample_positions)
         args, order_kernel = self._kernel("raster/args.comp.j2"), self._kernel("raster/order.comp.j2")
         # draws run one after the other: take them in depth order too (see _order_pass)
         ranges = {d.index: self._depth_range(frame, d) for d in draws}
@@ -330,6 +340,8 @@ class ComputeRasterizer:
                     prog["gua_any_opaque"] = any_opaque
                 if "gua_sample_pos" in prog:  # coverage at the hardware's sample points
                     prog["gua_sample_pos"].value = r.sample_positions
+                if "gua_sample_span" in prog:
+                    prog["gua_sample_span"] = span
                 r._set_material_uniforms(prog, d)
                 if per_program is not None:
                     per_program(prog)
