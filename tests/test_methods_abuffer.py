@@ -161,10 +161,12 @@ def test_merge2_uses_both_lists(renderers):
 
 
 def test_critical_section_on_this_device(renderer_factory):
-    # 'auto' takes the interlock where the device has it, the spin lock otherwise
+    # 'auto' takes the spin lock where compute kernels make the fragments (raster: auto on a GPU),
+    # the interlock where the device has it and fragment shaders do, the spin lock otherwise
     r = renderer_factory("exact", method="presort_cs_et")
     frame = r.render(layered_quads_scene(n_layers=16, order="shuffled", seed=2), 64, 64)
-    expected = "interlock" if r.caps.fragment_interlock else "spin"
+    compute = r.method.compute_takes_fragments(r.method.settings["raster"], r.caps)
+    expected = "interlock" if r.caps.fragment_interlock and not compute else "spin"
     assert frame.stats["critical_section"] == expected
     assert ("abuffer_locks" in frame.stats["memory"]) == (expected == "spin")
     if not r.caps.fragment_interlock:
@@ -205,8 +207,10 @@ def test_interlock_variant_generates_the_critical_section(renderer_factory):
 
     r = renderer_factory("exact")
     caps = dataclasses.replace(r.caps, fragment_interlock=True)
-    m = method_class("presort_cs_et")(dict(r.method.settings, lock="auto", max_spin=64), caps)
+    m = method_class("presort_cs_et")(dict(r.method.settings, lock="auto", raster="hardware", max_spin=64), caps)
     assert m.lock == "interlock" and m.extra_slots == 0 and "fragment_shader_interlock" in m.extensions()
+    gpu = dataclasses.replace(caps, software=False)  # raster: auto on a GPU: compute kernels, the spin lock
+    assert method_class("presort_cs_et")(dict(r.method.settings, lock="auto", max_spin=64), gpu).lock == "spin"
     src = r.shaders.render(
         "geometry/triangle_mesh.frag.j2",
         transparent=True,

@@ -94,11 +94,20 @@ class PreSortCS(ABufferVariant):
     def __init__(self, settings, caps):
         super().__init__(settings, caps)
         lock = settings["lock"]
-        if settings.get("raster") == "compute" and lock == "auto":
-            lock = "spin"  # the interlock exists only in fragment shaders
+        if lock == "auto" and self.compute_takes_fragments(settings.get("raster"), caps):
+            # the interlock exists only in fragment shaders, and the compute rasterizer with the
+            # spin lock was the faster pair on every Table 1 scene on the H100 (presort_cs_et,
+            # benchmarks/results/h100/final/paper_table_{compute,hardware}.md: dragons 7.7 against
+            # 20.5 ms, Sponza v1 3.3 against 11.5, v2 3.5 against 13.6, hairball_v1 11.1 against 123)
+            lock = "spin"
         self.lock = resolve_lock(self.id, lock, caps)
         self._use_32bit_links()  # the critical section orders the list: no 64-bit atomics needed
         self.extra_slots = 1 if self.lock == "spin" else 0  # one lock word per pixel
+
+    @staticmethod
+    def compute_takes_fragments(raster: str | None, caps) -> bool:
+        """Whether the compute rasterizer makes (most of) the fragments: raster compute, or auto on a GPU."""
+        return raster == "compute" or (raster == "auto" and not caps.software)
 
     def compute_raster_refusal(self) -> str | None:
         """The fragment shader interlock has no compute counterpart; the spin lock has."""
