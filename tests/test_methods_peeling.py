@@ -4,6 +4,9 @@ layer peeling; pass counts on sorted input, the pass cap, the 8-bit stencil over
 from __future__ import annotations
 
 import colorsys
+import dataclasses
+import shutil
+import subprocess
 
 import numpy as np
 import pytest
@@ -275,3 +278,30 @@ def test_lit_demo_shades_like_presort_lf(renderer_factory, lit_demo_presort, met
     # display-encoded (tone curve + sRGB + FXAA) images: NVIDIA's compute-shader shading of peeled
     # layers rounds differently from the composite's fragment shader by up to 2/255 there
     assert np.abs(frame.image.astype(int) - expected.astype(int)).max() <= 2
+
+
+@pytest.mark.skipif(shutil.which("glslangValidator") is None, reason="glslangValidator (glslang-tools) not installed")
+@pytest.mark.parametrize("method", ["depth_peeling", "dual_depth_peeling"])
+def test_interlock_variant_passes_the_reference_compiler(renderer_factory, tmp_path, monkeypatch, method):
+    """The NVIDIA path (ordered slots as images inside the fragment shader interlock), which this device cannot build."""
+    from guaca_py.methods import method_class
+    from guaca_py.pipeline.drawlist import build_draw_list
+    from guaca_py.renderer import method_settings
+
+    r = renderer_factory("exact", method=method)
+    caps = dataclasses.replace(r.caps, fragment_interlock=True, framebuffer_fetch=False)
+    m = method_class(method)(method_settings(method, {}), caps)
+    assert m.order == "interlock"
+    m._phase = "dual" if method == "dual_depth_peeling" else "nearest"  # their ordered geometry phases
+    monkeypatch.setattr(r.shaders, "program", lambda key, stages, smap=None, label="": stages)
+    monkeypatch.setattr(r, "method", m)
+    scene = layered_quads_scene(n_layers=2, order="shuffled", seed=1)
+    draw = next(d for d in build_draw_list(scene, r.materials) if d.transparent)
+    for stage, (template, variables) in r.geometry_program(draw, True).items():
+        text = r.shaders.render(template, **variables)
+        if stage == "fragment_shader":
+            assert "pixel_interlock_ordered" in text and "imageStore(gua_ord0" in text
+        path = tmp_path / ("s.frag" if stage == "fragment_shader" else "s.vert")
+        path.write_text(text)
+        run = subprocess.run(["glslangValidator", str(path)], capture_output=True, text=True)
+        assert run.returncode == 0, (stage, run.stdout[-2000:])
