@@ -44,6 +44,9 @@ class TransparencyMethod:
     supports_antialiasing: ClassVar[bool] = False
     antialiasing_refusal: ClassVar[str] = "its fragments carry no coverage mask"
     aa_samples: int = 1  # samples per pixel (antialiasing.samples), set by the renderer
+    # the order the compute rasterizer takes a draw's triangles in: "depth" (front to back with
+    # early termination, back to front without; raster/order.comp.j2) or "mesh" (index order)
+    compute_order: ClassVar[str] = "depth"
 
     def __init__(self, settings: dict, caps: Capabilities):
         self.settings = settings
