@@ -9,6 +9,7 @@
 # 3. paper_table rows of the methods whose defaults changed: presort_cs_et (spin lock with the
 #    compute rasterizer), post_sort and post_merge16 (index order), with unsorted_blend and
 #    presort_lf_et beside them, on both hairballs and the dragons (~2 min)
+#    and hairball_v2 with presort_lf and post_sort in both compute triangle orders (raster_order)
 # 4. hairball_v2's accuracy table and chart (~2 min), then temporal stability of Sponza (~2.5 min)
 set -uo pipefail
 out=${1:-$OUT}
@@ -26,6 +27,13 @@ if [[ $part == a ]]; then
   timeout 150 python3 benchmarks/paper_table.py "$work/paper_table" --skip-stacks --raster compute hardware \
     --only dragons hairball_v1 hairball_v2 \
     --methods presort_lf_et presort_cs_et post_sort post_merge16 unsorted_blend 2>&1 | grep -v "^\s*$" | tail -32
+  # the compute rasterizer's triangle order against the composite's memory locality, hairball_v2
+  for run in "presort_lf depth" "presort_lf mesh" "post_sort depth" "post_sort mesh"; do
+    set -- $run
+    timeout 60 python3 -m guaca_py render .scenes/hairball_v2.yaml --method "$1" --set raster=compute \
+      --set raster_order="$2" --width 1024 --height 1024 --warmup 20 --frames 8 --out "$work/hb2_$1_$2.png" \
+      --stats "$work/hb2_$1_$2.json" 2>&1 | tail -2
+  done
 else
   PART=accuracy PART_S=130 SCENES_SUBSET="hairball_v2" bash benchmarks/aa_gpu_run.sh "$work/aa" \
     > "$work/aa_accuracy.txt" 2>&1

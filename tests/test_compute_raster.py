@@ -553,20 +553,30 @@ def test_triangles_are_taken_in_depth_order(renderer_factory, method):
         assert frame.stats["fragments"]["stored"] <= 6 * 32 * 32, frame.stats["fragments"]
 
 
-@pytest.mark.parametrize("method", ["post_sort", "post_merge16", "presort_lf"])
-def test_unsorted_gathering_takes_triangles_in_mesh_order(renderer_factory, method):
+@pytest.mark.parametrize(
+    ("method", "order", "mesh_order"),
+    [
+        ("post_sort", "auto", True),
+        ("post_merge16", "auto", True),
+        ("presort_lf", "auto", False),
+        ("presort_lf", "mesh", True),
+        ("post_sort", "depth", False),
+    ],
+)
+def test_unsorted_gathering_takes_triangles_in_mesh_order(renderer_factory, method, order, mesh_order):
     # 24 full-screen layers listed front to back: methods that gather without sorting take them in
-    # index order (neighbours on the mesh, neighbours in the pool), sorted insertion back to front
+    # index order (neighbours on the mesh, neighbours in the pool), sorted insertion back to front;
+    # transparency.raster_order overrides either
     n = 24
     quads = [tessellated_plane(1, 12.0, 0.0) for _ in range(n)]
     pos = np.concatenate([q.positions + np.float32([0, 0, z]) for q, z in zip(quads, np.linspace(2.0, -3.0, n))])
     idx = np.concatenate([q.indices + 4 * i for i, q in enumerate(quads)]).astype(np.uint32)
     mesh = MeshData(pos, np.tile(np.float32([0, 0, 1]), (len(pos), 1)), np.zeros((len(pos), 2), np.float32), idx)
     scene = simple_scene([Node("stack", mesh=mesh, material=unlit((0.7, 0.3, 0.2), 0.5))])
-    r = renderer_factory("exact", method=method, method_overrides={"raster": "compute"})
+    r = renderer_factory("exact", method=method, method_overrides={"raster": "compute", "raster_order": order})
     frame = r.render(scene, 32, 32)
     assert frame.stats["raster"]["compute"]["visible_triangles"] == 2 * n
     layer = np.frombuffer(r.raster.compute._order.read(), dtype=np.uint32)[: 2 * n] // 2
     steps = np.diff(layer.astype(int))
-    assert (steps >= 0).all() if method != "presort_lf" else (steps <= 0).all(), layer
+    assert (steps >= 0).all() if mesh_order else (steps <= 0).all(), layer
     assert frame.stats["fragments"]["stored"] == n * 32 * 32

@@ -6,7 +6,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 from ..errors import UnsupportedMethodError
 from ..pipeline.settings import NUMBER, Setting, unit_interval
-from ..raster.choice import RASTER_SETTING
+from ..raster.choice import RASTER_ORDER_SETTING, RASTER_SETTING
 
 if TYPE_CHECKING:
     from ..context import Capabilities
@@ -48,6 +48,11 @@ class TransparencyMethod:
     # early termination, back to front without; raster/order.comp.j2) or "mesh" (index order)
     compute_order: ClassVar[str] = "depth"
 
+    def raster_order(self) -> str:
+        """The compute rasterizer's triangle order for this method: its `raster_order` setting, or its own."""
+        order = self.settings.get("raster_order", "auto")
+        return self.compute_order if order == "auto" else order
+
     def __init__(self, settings: dict, caps: Capabilities):
         self.settings = settings
         self.caps = caps
@@ -58,6 +63,7 @@ class TransparencyMethod:
         common = {
             "threshold": Setting(NUMBER, 0.98, "saturation threshold for early termination", check=unit_interval),
             "raster": RASTER_SETTING,
+            "raster_order": RASTER_ORDER_SETTING,
         }
         return {**common, **cls.SETTINGS}
 

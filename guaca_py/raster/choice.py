@@ -16,6 +16,15 @@ RASTER_SETTING = Setting(
     choices=("hardware", "compute", "auto"),
 )
 
+RASTER_ORDER_SETTING = Setting(
+    (str,),
+    "auto",
+    "order in which the compute rasterizer takes a draw's triangles: 'depth' (front to back with early "
+    "termination, back to front without), 'mesh' (index order) or 'auto' (the method's: mesh for "
+    "post_sort and post_merge16, depth for the others; docs/raster.md)",
+    choices=("auto", "depth", "mesh"),
+)
+
 # `auto` takes the compute rasterizer for a draw whose visible triangles cover at most this many
 # pixels on average (estimated from a fixed sample). On the H100 (benchmarks/results/h100/
 # raster_sweep/) compute stored fragments 4-15x faster than the hardware at every size measured,

@@ -279,7 +279,7 @@ class ComputeRasterizer:
         order_kernel["gua_tri_count"] = draw.mesh.triangle_count
         order_kernel["gua_depth_range"] = depth_range
         order_kernel["gua_back_to_front"] = not early_termination
-        order_kernel["gua_mesh_order"] = self.renderer.method.compute_order == "mesh"
+        order_kernel["gua_mesh_order"] = self.renderer.method.raster_order() == "mesh"
         for mode, items in ((0, BUCKETS), (1, draw.mesh.triangle_count), (2, _GROUP), (3, draw.mesh.triangle_count)):
             order_kernel["gua_order_mode"] = mode
             order_kernel.run(*_grid(items))
