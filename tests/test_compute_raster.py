@@ -8,6 +8,7 @@ import colorsys
 import dataclasses
 import re
 import shutil
+import types
 
 import numpy as np
 import pytest
@@ -580,3 +581,20 @@ def test_unsorted_gathering_takes_triangles_in_mesh_order(renderer_factory, meth
     steps = np.diff(layer.astype(int))
     assert (steps >= 0).all() if mesh_order else (steps <= 0).all(), layer
     assert frame.stats["fragments"]["stored"] == n * 32 * 32
+
+
+def test_auto_takes_compute_for_every_size_where_the_method_asks(renderer_factory, monkeypatch):
+    # presort_cs_et on a GPU took the spin lock for the compute kernels: `auto` then sends large
+    # triangles there too rather than into a fragment-shader spin lock
+    from guaca_py.pipeline.drawlist import build_draw_list
+
+    r = renderer_factory("exact", method="presort_cs_et")
+    scene = simple_scene([quad_node("big", 0.0, (0.5, 0.5, 0.5), 0.5, size=12.0)])
+    draw = next(d for d in build_draw_list(scene, r.materials) if d.transparent)
+    monkeypatch.setattr(r, "caps", dataclasses.replace(r.caps, software=False))
+    monkeypatch.setattr(r.method, "auto_compute_reason", "spin lock for compute kernels")
+    assert r.raster.choose(None, draw) == ("compute", "spin lock for compute kernels")
+    monkeypatch.setattr(r.method, "auto_compute_reason", None)  # the area rule: a screen-filling quad
+    frame = types.SimpleNamespace(projection=np.eye(4), view=np.eye(4), width=1024, height=1024)
+    kind, why = r.raster.choose(frame, draw)
+    assert kind == "hardware" and "area" in why, (kind, why)

@@ -210,7 +210,9 @@ def test_interlock_variant_generates_the_critical_section(renderer_factory):
     m = method_class("presort_cs_et")(dict(r.method.settings, lock="auto", raster="hardware", max_spin=64), caps)
     assert m.lock == "interlock" and m.extra_slots == 0 and "fragment_shader_interlock" in m.extensions()
     gpu = dataclasses.replace(caps, software=False)  # raster: auto on a GPU: compute kernels, the spin lock
-    assert method_class("presort_cs_et")(dict(r.method.settings, lock="auto", max_spin=64), gpu).lock == "spin"
+    on_gpu = method_class("presort_cs_et")(dict(r.method.settings, lock="auto", max_spin=64), gpu)
+    assert on_gpu.lock == "spin" and "spin lock" in on_gpu.auto_compute_reason  # every draw: compute
+    assert m.auto_compute_reason is None
     src = r.shaders.render(
         "geometry/triangle_mesh.frag.j2",
         transparent=True,

@@ -100,6 +100,10 @@ class PreSortCS(ABufferVariant):
             # benchmarks/results/h100/final/paper_table_{compute,hardware}.md: dragons 7.7 against
             # 20.5 ms, Sponza v1 3.3 against 11.5, v2 3.5 against 13.6, hairball_v1 11.1 against 123)
             lock = "spin"
+            if settings.get("raster") == "auto":
+                # draws of large triangles too: a contended spin lock in a fragment shader
+                # serializes badly (base.resolve_lock), the compute kernels handle every size
+                self.auto_compute_reason = f"method '{self.id}': lock auto took the spin lock for compute kernels"
         self.lock = resolve_lock(self.id, lock, caps)
         self._use_32bit_links()  # the critical section orders the list: no 64-bit atomics needed
         self.extra_slots = 1 if self.lock == "spin" else 0  # one lock word per pixel

@@ -47,6 +47,9 @@ class TransparencyMethod:
     # the order the compute rasterizer takes a draw's triangles in: "depth" (front to back with
     # early termination, back to front without; raster/order.comp.j2) or "mesh" (index order)
     compute_order: ClassVar[str] = "depth"
+    # why `raster: auto` should take the compute rasterizer for draws of every triangle size (set
+    # by a method whose fragment-shader path would be slow with the choices it made), or None
+    auto_compute_reason: str | None = None
 
     def raster_order(self) -> str:
         """The compute rasterizer's triangle order for this method: its `raster_order` setting, or its own."""

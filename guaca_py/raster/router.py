@@ -43,6 +43,8 @@ class RasterRouter:
             return "hardware", problem
         if setting == "compute":
             return "compute", "raster: compute"
+        if self.renderer.method.auto_compute_reason:
+            return "compute", self.renderer.method.auto_compute_reason
         area = mean_projected_area(draw.mesh, draw.world, frame.projection @ frame.view, frame.width, frame.height)
         return auto_choice(False, area)
 
