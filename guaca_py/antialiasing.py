@@ -55,42 +55,20 @@ def check_device(ctx, samples: int, renderer_name: str, shaders) -> int:
             f"antialiasing.samples {samples} cannot run on {renderer_name}: it renders at most {most} samples "
             f"per pixel (GL_MAX_COLOR/DEPTH_TEXTURE_SAMPLES); use samples: {max(s for s in SAMPLE_COUNTS if s <= most)}"
         )
-    return samples if samples <= 1 else _allocated_samples(ctx, samples, shaders)
+    return samples if samples <= 1 else len(sample_positions(ctx, samples, shaders))
 
 
-_allocated: dict[tuple[int, int], int] = {}
 _positions: dict[tuple[int, int], tuple[tuple[float, float], ...]] = {}
 _MAX_SAMPLES = 64  # room for every sample a texture may really have
 
 
-def _allocated_samples(ctx, samples: int, shaders) -> int:
-    """Samples a multisampled texture asked for `samples` really has: the resolve must walk them all.
-
-    A device may round a count up (Mesa llvmpipe makes 4 of 2); the coverage masks and the G-buffer
-    then hold the larger count, so the composite reads that many.
-    """
-    key = (id(ctx), samples)
-    if key not in _allocated:
-        tex = ctx.texture((1, 1), 4, dtype="f2", samples=samples)
-        buf = ctx.buffer(reserve=4)
-        prog = shaders.compute("antialiasing/sample_count.comp.j2")
-        tex.use(location=0)
-        prog["gua_probe"] = 0
-        buf.bind_to_storage_buffer(0)
-        prog.run(1, 1, 1)
-        ctx.memory_barrier()
-        _allocated[key] = max(samples, int(np.frombuffer(buf.read(), dtype=np.int32)[0]))
-        for obj in (buf, tex):
-            obj.release()
-    return _allocated[key]
-
-
 def sample_positions(ctx, samples: int, shaders) -> tuple[tuple[float, float], ...]:
-    """Where in the pixel (0..1, y up) the device puts each of `samples` samples, in sample order.
+    """Where in the pixel (0..1, y up) the device puts each sample of a texture asked for `samples`.
 
-    The compute rasterizer tests coverage at the same points as the hardware, so a pixel's samples
-    in the multisampled G-buffer and in the coverage masks it makes are the same samples. Binds a
-    framebuffer, texture unit 0 and storage buffer 0: call it before a frame, not inside one.
+    As many as it really allocates: a device may round a count up (Mesa llvmpipe makes 4 of 2), and
+    the G-buffer, the coverage masks and the resolve then hold the larger count. The compute
+    rasterizer tests coverage at these points, so its masks name the same samples as the hardware's.
+    Binds a framebuffer, texture unit 0 and storage buffer 0: call it before a frame, not inside one.
     """
     key = (id(ctx), samples)
     if key not in _positions:
@@ -109,13 +87,15 @@ def sample_positions(ctx, samples: int, shaders) -> tuple[tuple[float, float], .
         fbo.clear(-1.0, -1.0, 0.0, 0.0)
         vao.render(vertices=3)
         read = shaders.compute("antialiasing/read_positions.comp.j2")
-        buf = ctx.buffer(reserve=8 * _MAX_SAMPLES)
+        buf = ctx.buffer(reserve=8 + 8 * _MAX_SAMPLES)  # the count, then vec2s from offset 8 (std430)
         tex.use(location=0)
         read["gua_probe"] = 0
         buf.bind_to_storage_buffer(0)
         read.run(1, 1, 1)
         ctx.memory_barrier()
-        xy = np.frombuffer(buf.read(), dtype=np.float32)[: 2 * samples].reshape(samples, 2)
+        data = buf.read()
+        count = max(samples, int(np.frombuffer(data[:4], dtype=np.int32)[0]))
+        xy = np.frombuffer(data[8:], dtype=np.float32)[: 2 * count].reshape(count, 2)
         _positions[key] = tuple((float(x), float(y)) for x, y in xy)
         for obj in (buf, vao, fbo, tex):
             obj.release()

@@ -91,14 +91,11 @@ class Renderer:
         self.config = load_pipeline(pipeline)
         # samples per pixel the G-buffer and coverage masks hold (a device may round antialiasing.samples up)
         self.shaders = ShaderLibrary(self.ctx, template_paths)
-        self.samples = antialiasing.check_device(
-            self.ctx, self.config.antialiasing["samples"], self.caps.renderer, self.shaders
-        )
-        # where those samples lie (the compute rasterizer tests coverage there); probed now, as the
-        # probe binds a framebuffer and a storage buffer of its own
-        self.sample_positions = (
-            antialiasing.sample_positions(self.ctx, self.samples, self.shaders) if self.samples > 1 else ()
-        )
+        asked = self.config.antialiasing["samples"]
+        self.samples = antialiasing.check_device(self.ctx, asked, self.caps.renderer, self.shaders)
+        # where those samples lie (the compute rasterizer tests coverage there): the probe that
+        # counted them, cached; made here, as it binds a framebuffer and a storage buffer of its own
+        self.sample_positions = antialiasing.sample_positions(self.ctx, asked, self.shaders) if asked > 1 else ()
         self.materials = MaterialRegistry(material_paths)
         self.meshes = MeshCache(self.ctx)
         self.textures = TextureCache(self.ctx)
