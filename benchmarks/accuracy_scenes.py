@@ -36,9 +36,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
 
+from config_rows import config_rows  # noqa: E402
 from gpu_clock import RETRIES, at_full_clock, max_sm_clock  # noqa: E402
 
-from guaca_py import GuacaError, Renderer  # noqa: E402
+from guaca_py import Renderer  # noqa: E402
 from guaca_py.accuracy import edge_pixels, flip, linear_pipeline, rmse_255, supersampled  # noqa: E402
 from guaca_py.context import create_context  # noqa: E402
 from guaca_py.methods import method_class, method_ids  # noqa: E402
@@ -143,48 +144,46 @@ def run_scene(ctx, caps, path: Path, args, pool) -> dict:
         + (f", OVERFLOW: {ref.overflow} fragments dropped (smaller --tile)" if ref.overflow else ""),
         flush=True,
     )
-    rows = []
-    for label, mid, n, overrides in configs(caps, args.methods, args.samples):
-        row = {"label": label, "method": mid, "samples": n, "exact": method_class(mid).exact, "settings": overrides}
-        # the first configuration runs whatever the reference took: a scene gets at least one row
-        if rows and args.scene_budget_s and time.perf_counter() - t0 > args.scene_budget_s:
-            row["skipped"] = f"scene time budget ({args.scene_budget_s:g} s) spent"
-            rows.append(row)
-            print(f"  {label}: skipped ({row['skipped']})", flush=True)
-            continue
-        try:
-            r = Renderer(linear_pipeline(n), ctx=ctx, method=mid, method_overrides=overrides or None)
-        except GuacaError as exc:  # a sample count or method this device refuses: recorded, not fatal
-            row["skipped"] = str(exc)
-            rows.append(row)
-            print(f"  {label}: skipped ({exc})", flush=True)
-            continue
-        try:
-            timing, frame = measure(r, scene, size, args, warmup_s)
-            img = frame.linear
-            row.update(timing)
-            row["samples"] = r.samples
-            row["rmse_255"] = rmse_255(img, ref.image)
-            row["edge_rmse_255"] = rmse_255(img, ref.image, edges)
-            row["flip"] = pool.submit(flip, img, ref.image) if pool is not None else flip(img, ref.image)
-            row["fragments"] = frame.stats.get("fragments", {})
-            row["raster"] = frame.stats.get("raster", {}).get("why")
-            row["memory"] = frame.stats.get("memory", {})
-            row["warnings"] = frame.stats.get("warnings", [])
-        except GuacaError as exc:
-            row["skipped"] = str(exc)
-        finally:
-            r.release()
-        rows.append(row)
-        if "skipped" not in row:
-            fl = f"  FLIP {row['flip']:.4f}" if isinstance(row["flip"], float) else ""
-            mhz = f"  {row['clock']['sm_clock_mhz_median']} MHz" if row["clock"] else ""
-            again = f" ({row['clock_retries']} retries)" if row["clock_retries"] else ""
-            print(
-                f"  {label:28s} {row['ms']:9.3f} ms  RMSE {row['rmse_255']:6.2f}  edge {row['edge_rmse_255']:6.2f}"
-                f"{fl}{mhz}{again}  [{time.perf_counter() - t0:.0f} s]",
-                flush=True,
+
+    def measure_row(r: Renderer, row: dict) -> None:
+        timing, frame = measure(r, scene, size, args, warmup_s)
+        img = frame.linear
+        row.update(timing)
+        row["samples"] = r.samples
+        row["rmse_255"] = rmse_255(img, ref.image)
+        row["edge_rmse_255"] = rmse_255(img, ref.image, edges)
+        row["flip"] = pool.submit(flip, img, ref.image) if pool is not None else flip(img, ref.image)
+        row["fragments"] = frame.stats.get("fragments", {})
+        row["raster"] = frame.stats.get("raster", {}).get("why")
+        row["memory"] = frame.stats.get("memory", {})
+        row["warnings"] = frame.stats.get("warnings", [])
+
+    def report(row: dict) -> None:
+        fl = f"  FLIP {row['flip']:.4f}" if isinstance(row["flip"], float) else ""
+        mhz = f"  {row['clock']['sm_clock_mhz_median']} MHz" if row["clock"] else ""
+        again = f" ({row['clock_retries']} retries)" if row["clock_retries"] else ""
+        print(
+            f"  {row['label']:28s} {row['ms']:9.3f} ms  RMSE {row['rmse_255']:6.2f}  edge {row['edge_rmse_255']:6.2f}"
+            f"{fl}{mhz}{again}  [{time.perf_counter() - t0:.0f} s]",
+            flush=True,
+        )
+
+    def renderer(n: int, mid: str, overrides: dict):
+        return lambda: Renderer(linear_pipeline(n), ctx=ctx, method=mid, method_overrides=overrides or None)
+
+    rows = config_rows(
+        (
+            (
+                {"label": label, "method": mid, "samples": n, "exact": method_class(mid).exact, "settings": overrides},
+                renderer(n, mid, overrides),
             )
+            for label, mid, n, overrides in configs(caps, args.methods, args.samples)
+        ),
+        measure_row,
+        report,
+        t0,
+        args.scene_budget_s,
+    )
     for row in rows:
         if hasattr(row.get("flip"), "result"):
             row["flip"] = row["flip"].result()

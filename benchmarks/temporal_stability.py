@@ -33,9 +33,11 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT)]
+sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
 
-from guaca_py import GuacaError, Renderer  # noqa: E402
+from config_rows import config_rows  # noqa: E402
+
+from guaca_py import Renderer  # noqa: E402
 from guaca_py.accuracy import linear_pipeline, supersampled  # noqa: E402
 from guaca_py.context import create_context  # noqa: E402
 from guaca_py.methods import method_class, method_ids  # noqa: E402
@@ -128,37 +130,31 @@ def run_scene(ctx, caps, path: Path, args) -> dict:
     confs = [(m, m, 1) for m in ids]
     # the sample counts right after the first method: a scene's time budget cuts the method list instead
     confs[1:1] = [(f"{AA_METHOD} x{n}", AA_METHOD, n) for n in args.samples if n > 1]
-    rows = []
-    for label, mid, n in confs:
-        row = {"label": label, "method": mid, "samples": n, "exact": method_class(mid).exact}
-        t1 = time.perf_counter()
-        # the first configuration runs whatever the reference took: a scene gets at least one row
-        if rows and args.scene_budget_s and t1 - t0 > args.scene_budget_s:
-            row["skipped"] = f"scene time budget ({args.scene_budget_s:g} s) spent"
-            rows.append(row)
-            print(f"  {label}: skipped ({row['skipped']})", flush=True)
-            continue
-        try:
-            r = Renderer(linear_pipeline(n), ctx=ctx, method=mid)
-        except GuacaError as exc:
-            row["skipped"] = str(exc)
-            rows.append(row)
-            print(f"  {label}: skipped ({exc})", flush=True)
-            continue
-        try:
-            row["samples"] = r.samples
-            row.update(run_config(r, poses, args.size, masks, args.tolerance, args.repeat))
-        except GuacaError as exc:
-            row["skipped"] = str(exc)
-        finally:
-            r.release()
-        rows.append(row)
-        if "skipped" not in row:
-            print(
-                f"  {label:28s} mean diff {row['mean_diff_255']:7.3f}/255  flicker {row['flicker_share']:7.2%}  "
-                f"bit-identical {row['bit_identical']}  ({time.perf_counter() - t1:.1f} s)",
-                flush=True,
-            )
+
+    def measure_row(r: Renderer, row: dict) -> None:
+        row["samples"] = r.samples
+        row.update(run_config(r, poses, args.size, masks, args.tolerance, args.repeat))
+
+    def report(row: dict) -> None:
+        print(
+            f"  {row['label']:28s} mean diff {row['mean_diff_255']:7.3f}/255  flicker {row['flicker_share']:7.2%}  "
+            f"bit-identical {row['bit_identical']}  ({row['seconds']:.1f} s)",
+            flush=True,
+        )
+
+    def renderer(n: int, mid: str):
+        return lambda: Renderer(linear_pipeline(n), ctx=ctx, method=mid)
+
+    rows = config_rows(
+        (
+            ({"label": label, "method": mid, "samples": n, "exact": method_class(mid).exact}, renderer(n, mid))
+            for label, mid, n in confs
+        ),
+        measure_row,
+        report,
+        t0,
+        args.scene_budget_s,
+    )
     return {
         "scene": path.stem,
         "size": args.size,
