@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import ctypes
 
-from .host_state import _raw_or_none
+from .host_state import raw_functions_or_none
 
 GL_TIME_ELAPSED = 0x88BF
 GL_QUERY_RESULT = 0x8866
@@ -14,7 +14,7 @@ class TimerQuery:
     """A GL_TIME_ELAPSED query around a block (`with q: ...`), read with `elapsed` (ns), freed with `release()`."""
 
     def __init__(self, ctx):
-        self._gl = _raw_or_none()
+        self._gl = raw_functions_or_none()
         self._fallback = None
         if self._gl is None:  # no raw entry points: moderngl's query (its name stays until exit)
             self._fallback = ctx.query(time=True)

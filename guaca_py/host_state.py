@@ -242,7 +242,7 @@ def raw_functions() -> RawGLFunctions:
 
 
 @lru_cache(maxsize=1)
-def _raw_or_none() -> RawGLFunctions | None:
+def raw_functions_or_none() -> RawGLFunctions | None:
     """raw_functions(), or None where no GL library exposes them (state is then not saved)."""
     try:
         return raw_functions()
@@ -490,9 +490,9 @@ class ContextGuard:
             self._depth = 1
             saved = mgl = None
             try:
-                if self.restore_state and _raw_or_none() is not None:
+                if self.restore_state and raw_functions_or_none() is not None:
                     mgl = (self.ctx.fbo,)
-                    saved = HostGLState(_raw_or_none(), (self.ctx.default_texture_unit,))
+                    saved = HostGLState(raw_functions_or_none(), (self.ctx.default_texture_unit,))
                     saved.reset_for_guaca()
                 yield
             finally:

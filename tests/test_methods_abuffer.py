@@ -161,11 +161,13 @@ def test_merge2_uses_both_lists(renderers):
 
 
 def test_critical_section_on_this_device(renderer_factory):
+    from guaca_py.raster.choice import compute_kernels_draw
+
     # 'auto' takes the spin lock where compute kernels make the fragments (raster: auto on a GPU),
     # the interlock where the device has it and fragment shaders do, the spin lock otherwise
     r = renderer_factory("exact", method="presort_cs_et")
     frame = r.render(layered_quads_scene(n_layers=16, order="shuffled", seed=2), 64, 64)
-    compute = r.method.compute_takes_fragments(r.method.settings["raster"], r.caps)
+    compute = compute_kernels_draw(r.method.settings["raster"], r.caps)
     expected = "interlock" if r.caps.fragment_interlock and not compute else "spin"
     assert frame.stats["critical_section"] == expected
     assert ("abuffer_locks" in frame.stats["memory"]) == (expected == "spin")

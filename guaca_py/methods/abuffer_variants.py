@@ -9,6 +9,7 @@ PreSortLF's node pool, payload, counters, overflow reporting and 'auto' growth.
 from __future__ import annotations
 
 from ..pipeline.settings import Setting, positive
+from ..raster.choice import compute_kernels_draw
 from .base import LOCK_SETTING, resolve_lock
 from .presort_lf import COUNTERS, NODE_PAYLOAD_BYTES, PreSortLF
 
@@ -94,7 +95,7 @@ class PreSortCS(ABufferVariant):
     def __init__(self, settings, caps):
         super().__init__(settings, caps)
         lock = settings["lock"]
-        if lock == "auto" and self.compute_takes_fragments(settings.get("raster"), caps):
+        if lock == "auto" and compute_kernels_draw(settings.get("raster"), caps):
             # the interlock exists only in fragment shaders, and the compute rasterizer with the
             # spin lock was the faster pair on every Table 1 scene on the H100 (presort_cs_et,
             # benchmarks/results/h100/final/paper_table_{compute,hardware}.md: dragons 7.7 against
@@ -107,11 +108,6 @@ class PreSortCS(ABufferVariant):
         self.lock = resolve_lock(self.id, lock, caps)
         self._use_32bit_links()  # the critical section orders the list: no 64-bit atomics needed
         self.extra_slots = 1 if self.lock == "spin" else 0  # one lock word per pixel
-
-    @staticmethod
-    def compute_takes_fragments(raster: str | None, caps) -> bool:
-        """Whether the compute rasterizer makes (most of) the fragments: raster compute, or auto on a GPU."""
-        return raster == "compute" or (raster == "auto" and not caps.software)
 
     def compute_raster_refusal(self) -> str | None:
         """The fragment shader interlock has no compute counterpart; the spin lock has."""

@@ -88,6 +88,11 @@ def mean_projected_area(mesh, world: np.ndarray, view_projection: np.ndarray, wi
     return area
 
 
+def compute_kernels_draw(raster: str | None, caps) -> bool:
+    """Whether the compute rasterizer makes (most of) the transparent fragments: `compute`, or `auto` on a GPU."""
+    return raster == "compute" or (raster == "auto" and not caps.software)
+
+
 def auto_choice(software: bool, mean_area: float) -> tuple[str, str]:
     """(rasterizer, reason) of `auto` for one draw."""
     if software:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ..errors import ConfigError
-from .choice import auto_choice, auto_rule, mean_projected_area
+from .choice import auto_choice, auto_rule, compute_kernels_draw, mean_projected_area
 from .compute_raster import ComputeRasterizer
 
 
@@ -34,7 +34,7 @@ class RasterRouter:
         refusal = self.renderer.method.compute_raster_refusal()
         if refusal:  # raster: compute was refused when the method was set
             return "hardware", f"method '{self.renderer.method.id}': {refusal}"
-        if setting == "auto" and self.renderer.caps.software:
+        if not compute_kernels_draw(setting, self.renderer.caps):  # auto on a software rasterizer
             return auto_choice(True, 0.0)
         problem = self.compute.material_problem(draw)
         if problem:
