@@ -177,9 +177,11 @@ class RawGLFunctions:
 
     def __init__(self):
         lib = None
+        self.source = "eglGetProcAddress"  # where the entry points come from (the library when it has them)
         for name in ("libOpenGL.so.0", "libGL.so.1", "libGL.so"):
             try:
                 lib = ctypes.CDLL(name)
+                self.source = name
                 break
             except OSError:
                 continue
