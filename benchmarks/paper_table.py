@@ -195,12 +195,17 @@ def scene_rows(args, ctx, out: dict) -> None:
 
 
 def make_renderer(ctx, mid: str, raster: str):
-    """A default-pipeline Renderer for `mid` with `raster`; None when the method takes no raster setting."""
+    """A default-pipeline Renderer for `mid` with `raster` ('compute/tile': with that raster_order); None when n/a."""
     from guaca_py.methods import method_class
 
-    if "raster" not in method_class(mid).settings_schema():
-        return Renderer("default", ctx=ctx, method=mid, **_OWN) if raster == "hardware" else None
-    return Renderer("default", ctx=ctx, method=mid, method_overrides={"raster": raster}, **_OWN)
+    cls = method_class(mid)
+    if "raster" not in cls.settings_schema():
+        return Renderer("default", ctx=ctx, method=mid, **_OWN) if raster in ("hardware", "auto") else None
+    if raster.startswith("compute") and not cls.compute_raster:
+        return None  # the method draws through the fragment pipeline only
+    kind, _, order = raster.partition("/")
+    overrides = {"raster": kind, **({"raster_order": order} if order else {})}
+    return Renderer("default", ctx=ctx, method=mid, method_overrides=overrides, **_OWN)
 
 
 def stack_rows(args, ctx, out: dict) -> None:
@@ -355,7 +360,12 @@ def main() -> None:
     ap.add_argument("--warmup-s", type=float, default=1.5)
     ap.add_argument("--only", nargs="*", default=None)
     ap.add_argument("--methods", nargs="*", default=METHODS)
-    ap.add_argument("--raster", nargs="*", default=["hardware", "compute"], help="rasterizers of transparent draws")
+    ap.add_argument(
+        "--raster",
+        nargs="*",
+        default=["hardware", "compute"],
+        help="rasterizers of transparent draws; compute/ORDER also sets transparency.raster_order",
+    )
     ap.add_argument("--skip-stacks", action="store_true")
     ap.add_argument(
         "--empty-only", action="store_true", help="only the empty frame (with and without pass fusion); JSON only"

@@ -3,6 +3,7 @@
 # results in one archive $1/pending_<part>.tgz (the GPU machine returns few files).
 #   source .gl/gpu-env.sh && PART=a bash benchmarks/pending_gpu_checks.sh "$OUT"   # 1-3, ~7 min
 #   source .gl/gpu-env.sh && PART=b bash benchmarks/pending_gpu_checks.sh "$OUT"   # 4, ~5 min
+#   source .gl/gpu-env.sh && PART=order bash benchmarks/pending_gpu_checks.sh "$OUT"   # 5, ~8 min
 # 1. the whole test suite on the NVIDIA variants (~2-3 min; peeling's interlock path included)
 # 2. anti-aliasing cost, 1 against 4 samples, pass by pass: dragons and hairball_v1 (~1 min;
 #    exact compute-raster boxes and per-sample edge increments)
@@ -11,6 +12,7 @@
 #    presort_lf_et beside them, on both hairballs and the dragons (~2 min)
 #    and hairball_v2 with presort_lf and post_sort in both compute triangle orders (raster_order)
 # 4. hairball_v2's accuracy table and chart (~2 min), then temporal stability of Sponza (~2.5 min)
+# 5. the suite, then the compute rasterizer's triangle orders (depth, mesh, tile) per method and scene
 set -uo pipefail
 out=${1:-$OUT}
 work=/tmp/pending
@@ -34,6 +36,14 @@ if [[ $part == a ]]; then
       --set raster_order="$2" --width 1024 --height 1024 --warmup 20 --frames 8 --out "$work/hb2_$1_$2.png" \
       --stats "$work/hb2_$1_$2.json" 2>&1 | tail -2
   done
+elif [[ $part == order ]]; then
+  # the compute rasterizer's triangle order (transparency.raster_order) against every method that
+  # takes compute fragments, on every scene (~5 min), after the whole suite (~2 min)
+  timeout 200 python3 -m pytest -q -p no:cacheprovider tests > "$work/pytest_gpu.txt" 2>&1
+  tail -3 "$work/pytest_gpu.txt"
+  timeout 330 python3 benchmarks/paper_table.py "$work/paper_table_order" --skip-stacks \
+    --raster compute/depth compute/mesh compute/tile \
+    --methods presort_lf_et presort_lf presort_cs_et post_sort post_merge16 2>&1 | grep -v "^\s*$" | tail -80
 else
   PART=accuracy PART_S=130 SCENES_SUBSET="hairball_v2" bash benchmarks/aa_gpu_run.sh "$work/aa" \
     > "$work/aa_accuracy.txt" 2>&1

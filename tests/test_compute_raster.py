@@ -542,7 +542,8 @@ def test_triangles_are_taken_in_depth_order(renderer_factory, method):
     idx = np.concatenate([q.indices + 4 * i for i, q in enumerate([*quads, quads[0]])]).astype(np.uint32)
     mesh = MeshData(pos, np.tile(np.float32([0, 0, 1]), (len(pos), 1)), np.zeros((len(pos), 2), np.float32), idx)
     scene = simple_scene([Node("stack", mesh=mesh, material=unlit((0.7, 0.3, 0.2), 0.5))])
-    r = renderer_factory("exact", method=method, method_overrides={"raster": "compute", "threshold": 0.9})
+    overrides = {"raster": "compute", "threshold": 0.9, "raster_order": "depth"}
+    r = renderer_factory("exact", method=method, method_overrides=overrides)
     frame = r.render(scene, 32, 32)
     st = frame.stats["raster"]["compute"]
     assert st["visible_triangles"] == 2 * n, st
@@ -557,17 +558,16 @@ def test_triangles_are_taken_in_depth_order(renderer_factory, method):
 @pytest.mark.parametrize(
     ("method", "order", "mesh_order"),
     [
-        ("post_sort", "auto", True),
-        ("post_merge16", "auto", True),
-        ("presort_lf", "auto", False),
+        ("post_sort", "mesh", True),
+        ("post_merge16", "mesh", True),
+        ("presort_lf", "depth", False),
         ("presort_lf", "mesh", True),
         ("post_sort", "depth", False),
     ],
 )
-def test_unsorted_gathering_takes_triangles_in_mesh_order(renderer_factory, method, order, mesh_order):
-    # 24 full-screen layers listed front to back: methods that gather without sorting take them in
-    # index order (neighbours on the mesh, neighbours in the pool), sorted insertion back to front;
-    # transparency.raster_order overrides either
+def test_raster_order_mesh_and_depth(renderer_factory, method, order, mesh_order):
+    # 24 full-screen layers listed front to back: index order keeps them so, depth order without
+    # early termination takes them back to front
     n = 24
     quads = [tessellated_plane(1, 12.0, 0.0) for _ in range(n)]
     pos = np.concatenate([q.positions + np.float32([0, 0, z]) for q, z in zip(quads, np.linspace(2.0, -3.0, n))])
@@ -598,3 +598,64 @@ def test_auto_takes_compute_for_every_size_where_the_method_asks(renderer_factor
     frame = types.SimpleNamespace(projection=np.eye(4), view=np.eye(4), width=1024, height=1024)
     kind, why = r.raster.choose(frame, draw)
     assert kind == "hardware" and "area" in why, (kind, why)
+
+
+@pytest.mark.parametrize(
+    ("method", "expected"),
+    [("presort_lf_et", "depth"), ("presort_cs_et", "depth"), ("presort_lf", "tile"), ("post_sort", "tile"), ("post_merge16", "tile")],
+)
+def test_auto_raster_order_is_depth_with_early_termination_else_tile(renderer_factory, method, expected):
+    # the measured rule (benchmarks/results/h100/raster_order/orders.md): early termination culls
+    # most in depth order, the others walk and composite fastest over tile-ordered pools
+    r = renderer_factory("exact", method=method)
+    assert r.method.raster_order() == expected
+    r2 = renderer_factory("exact", method=method, method_overrides={"raster_order": "mesh"})
+    assert r2.method.raster_order() == "mesh"
+
+
+def _morton16(ndc: np.ndarray) -> np.ndarray:
+    """Morton key of the 16 x 16 screen tile of NDC points (order.comp.j2's tile order)."""
+    t = np.minimum(np.floor((np.clip(ndc, -1, 1) * 0.5 + 0.5) * 16), 15).astype(int)
+    key = np.zeros(len(t), int)
+    for bit in range(4):
+        key |= ((t[:, 0] >> bit) & 1) << (2 * bit) | ((t[:, 1] >> bit) & 1) << (2 * bit + 1)
+    return key
+
+
+@pytest.mark.parametrize("method", ["presort_lf", "presort_lf_et", "post_sort"])
+def test_tile_order_runs_screen_tiles_one_after_another(renderer_factory, method):
+    # small quads in a 3 x 3 grid of screen places, three depths each, listed depth-major: the tile
+    # order takes them place by place (Morton order of their tiles), by the method's depth
+    # direction within a place (front to back with early termination, back to front without)
+    # places at screen tile centres, each quad scaled along its eye ray to project the same there
+    places = [-1 + 0.125 * (i + 0.5) for i in (3, 8, 12)]
+    zs = (1.0, 0.0, -1.0)
+    nodes_pos, tris = [], []
+    for zi, z in enumerate(zs):
+        s = (5.0 - z) * np.tan(np.radians(25.0))  # NDC to world at this depth (camera at z = 5)
+        for y in places:
+            for x in places:
+                q = np.float32([[-0.01, -0.01, 0], [0.01, -0.01, 0], [0.01, 0.01, 0], [-0.01, 0.01, 0]]) * s
+                nodes_pos.append(q + np.float32([x * s, y * s, z]))
+                tris.append((zi, x, y, z))
+    pos = np.concatenate(nodes_pos)
+    idx = np.concatenate([np.uint32([[0, 1, 2], [0, 2, 3]]) + 4 * i for i in range(len(nodes_pos))]).astype(np.uint32)
+    mesh = MeshData(pos, np.tile(np.float32([0, 0, 1]), (len(pos), 1)), np.zeros((len(pos), 2), np.float32), idx)
+    scene = simple_scene([Node("grid", mesh=mesh, material=unlit((0.7, 0.3, 0.2), 0.5))])
+    r = renderer_factory("exact", method=method, method_overrides={"raster": "compute", "raster_order": "tile"})
+    frame = r.render(scene, 64, 64)
+    n = 2 * len(nodes_pos)
+    assert frame.stats["raster"]["compute"]["visible_triangles"] == n
+    order = np.frombuffer(r.raster.compute._order.read(), dtype=np.uint32)[:n]
+    # each triangle's tile from its corners' NDC centroid, as the kernel takes it
+    vp = scene.camera.projection_matrix(1.0) @ scene.camera.view_matrix()
+    clip = np.c_[pos, np.ones(len(pos))] @ vp.T
+    ndc = clip[:, :2] / clip[:, 3:4]
+    keys = _morton16(ndc[idx].mean(axis=1))[order]
+    assert (np.diff(keys) >= 0).all(), keys
+    assert len(set(keys.tolist())) == 9  # nine places, nine tiles
+    depth_rank = np.array([tris[t // 2][0] for t in order])  # 0 nearest
+    for k in set(keys.tolist()):
+        steps = np.diff(depth_rank[keys == k])
+        assert (steps >= 0).all() if method == "presort_lf_et" else (steps <= 0).all(), depth_rank[keys == k]
+    assert frame.stats["fragments"]["overflow"] == 0

@@ -160,13 +160,6 @@ class _PostBase(ABufferVariant):
 
     id = ""
     early_termination = False  # nothing is sorted while gathering, so nothing can be known hidden
-    # Gathering is a head swap, so depth order saves no insertion walk; in index order a SIMD
-    # group's triangles are neighbours on the mesh, so a pixel's nodes and its neighbours' lie
-    # near each other in the pool, as the hardware rasterizer leaves them. The composite reads
-    # them pixel-neighbour by pixel-neighbour: on the H100, hairball_v2's post_sort composite took
-    # 494 ms over depth-ordered compute lists against 20 ms over hardware-made ones of equal content
-    # (benchmarks/results/h100/final/paper_table_{compute,hardware}.md).
-    compute_order = "mesh"
 
     def __init__(self, settings, caps):
         super().__init__(settings, caps)

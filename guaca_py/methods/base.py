@@ -44,9 +44,10 @@ class TransparencyMethod:
     supports_antialiasing: ClassVar[bool] = False
     antialiasing_refusal: ClassVar[str] = "its fragments carry no coverage mask"
     aa_samples: int = 1  # samples per pixel (antialiasing.samples), set by the renderer
-    # the order the compute rasterizer takes a draw's triangles in: "depth" (front to back with
-    # early termination, back to front without; raster/order.comp.j2) or "mesh" (index order)
-    compute_order: ClassVar[str] = "depth"
+    # the order the compute rasterizer takes a draw's triangles in (raster/order.comp.j2): "depth"
+    # (front to back with early termination, back to front without), "mesh" (index order),
+    # "tile" (screen tiles, by depth within each), or None: the rule of raster_order()
+    compute_order: ClassVar[str | None] = None
     # why `raster: auto` should take the compute rasterizer for draws of every triangle size (set
     # by a method whose fragment-shader path would be slow with the choices it made), or None
     auto_compute_reason: str | None = None
@@ -54,7 +55,17 @@ class TransparencyMethod:
     def raster_order(self) -> str:
         """The compute rasterizer's triangle order for this method: its `raster_order` setting, or its own."""
         order = self.settings.get("raster_order", "auto")
-        return self.compute_order if order == "auto" else order
+        if order != "auto":
+            return order
+        if self.compute_order:
+            return self.compute_order
+        # On the H100 (benchmarks/results/h100/raster_order/orders.md), depth order let early
+        # termination cull most: presort_cs_et hairball_v2 25.2 ms against 48.8 in tile order.
+        # Without it, tile order keeps each pixel's nodes and its neighbours' in one short run of
+        # the pool, where insertion walks and the composite read them: hairball_v2 presort_lf 161 ->
+        # 28.4 ms, post_sort 330 (mesh order) -> 29.3, post_merge16 787 -> 93; the dragons lose
+        # ~1 ms (post_sort 3.4 -> 4.4), Sponza is within 0.5 ms either way.
+        return "depth" if getattr(self, "early_termination", False) else "tile"
 
     def __init__(self, settings: dict, caps: Capabilities):
         self.settings = settings

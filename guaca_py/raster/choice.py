@@ -20,9 +20,9 @@ RASTER_ORDER_SETTING = Setting(
     (str,),
     "auto",
     "order in which the compute rasterizer takes a draw's triangles: 'depth' (front to back with early "
-    "termination, back to front without), 'mesh' (index order) or 'auto' (the method's: mesh for "
-    "post_sort and post_merge16, depth for the others; docs/raster.md)",
-    choices=("auto", "depth", "mesh"),
+    "termination, back to front without), 'mesh' (index order), 'tile' (screen tiles, by depth within "
+    "each) or 'auto' (the method's; docs/raster.md)",
+    choices=("auto", "depth", "mesh", "tile"),
 )
 
 # `auto` takes the compute rasterizer for a draw whose visible triangles cover at most this many

@@ -65,7 +65,8 @@ MEDIUM_AREA = 1024  # larger boxes up to this many pixels by one 64-thread workg
 DEPTH_UNIT = 7  # texture unit of the G-buffer depth (units 8+ hold material textures)
 VERTEX_RECORD_BYTES = 48  # clip position, world position + u, normal + v
 MAX_REGROW = 2  # re-renders one frame may take to grow the queue or the job list
-BUCKETS = 1024  # view-depth buckets of the triangle order (a multiple of 64: order.comp.j2's scan)
+BUCKETS = 16384  # buckets of the triangle order (a multiple of 64: order.comp.j2's scan)
+ORDER_TILE_BITS = 4  # tile order: 16 x 16 screen tiles of 64 depth buckets each
 _GROUP = 64  # threads per workgroup of the vertex and setup stages
 _MAX_GROUPS_X = 65535  # the GL minimum of GL_MAX_COMPUTE_WORK_GROUP_COUNT; grids wrap into y
 
@@ -136,6 +137,7 @@ class ComputeRasterizer:
             "raster_medium_area": self.medium_area,
             "raster_depth_unit": DEPTH_UNIT,
             "raster_buckets": BUCKETS,
+            "raster_order_tile_bits": ORDER_TILE_BITS,
         }
 
     def _compute_material(self, mat):
@@ -270,7 +272,7 @@ class ComputeRasterizer:
         return float(max(w.min(), 0.0)), float(max(w.max(), 0.0))
 
     def _order_pass(self, frame, draw, order_kernel, depth_range: tuple[float, float]) -> None:
-        """Bucket-sort the draw's triangles in the frustum by view depth (see order.comp.j2)."""
+        """Bucket-sort the draw's triangles in the frustum by view depth, index or screen tile (order.comp.j2)."""
         ctx = self.ctx
         self._fit_order(draw.mesh.triangle_count)
         self._buckets.bind_to_storage_buffer(14)
@@ -279,7 +281,9 @@ class ComputeRasterizer:
         order_kernel["gua_tri_count"] = draw.mesh.triangle_count
         order_kernel["gua_depth_range"] = depth_range
         order_kernel["gua_back_to_front"] = not early_termination
-        order_kernel["gua_mesh_order"] = self.renderer.method.raster_order() == "mesh"
+        order = self.renderer.method.raster_order()
+        order_kernel["gua_mesh_order"] = order == "mesh"
+        order_kernel["gua_tile_order"] = order == "tile"
         for mode, items in ((0, BUCKETS), (1, draw.mesh.triangle_count), (2, _GROUP), (3, draw.mesh.triangle_count)):
             order_kernel["gua_order_mode"] = mode
             order_kernel.run(*_grid(items))
