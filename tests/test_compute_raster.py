@@ -602,7 +602,13 @@ def test_auto_takes_compute_for_every_size_where_the_method_asks(renderer_factor
 
 @pytest.mark.parametrize(
     ("method", "expected"),
-    [("presort_lf_et", "depth"), ("presort_cs_et", "depth"), ("presort_lf", "tile"), ("post_sort", "tile"), ("post_merge16", "tile")],
+    [
+        ("presort_lf_et", "depth"),
+        ("presort_cs_et", "depth"),
+        ("presort_lf", "tile"),
+        ("post_sort", "tile"),
+        ("post_merge16", "tile"),
+    ],
 )
 def test_auto_raster_order_is_depth_with_early_termination_else_tile(renderer_factory, method, expected):
     # the measured rule (benchmarks/results/h100/raster_order/orders.md): early termination culls
