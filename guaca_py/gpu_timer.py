@@ -1,4 +1,4 @@
-"""GPU timer queries that can be deleted: moderngl's Query has no release, so each renderer left its names behind."""
+"""GPU queries (timer, samples passed) that can be deleted: moderngl's Query has no release, so each renderer left its names behind."""
 
 from __future__ import annotations
 
@@ -7,17 +7,20 @@ import ctypes
 from .host_state import raw_functions_or_none
 
 GL_TIME_ELAPSED = 0x88BF
+GL_SAMPLES_PASSED = 0x8914
 GL_QUERY_RESULT = 0x8866
 
 
-class TimerQuery:
-    """A GL_TIME_ELAPSED query around a block (`with q: ...`), read with `elapsed` (ns), freed with `release()`."""
+class _Query:
+    """A query of `target` around a block (`with q: ...`), read with `result` (waits), freed with `release()`."""
+
+    target = GL_TIME_ELAPSED
 
     def __init__(self, ctx):
         self._gl = raw_functions_or_none()
         self._fallback = None
         if self._gl is None:  # no raw entry points: moderngl's query (its name stays until exit)
-            self._fallback = ctx.query(time=True)
+            self._fallback = ctx.query(time=self.target == GL_TIME_ELAPSED, samples=self.target == GL_SAMPLES_PASSED)
             return
         name = ctypes.c_uint(0)
         self._gl.glGenQueries(1, ctypes.byref(name))
@@ -26,20 +29,20 @@ class TimerQuery:
     def __enter__(self):
         if self._fallback is not None:
             return self._fallback.__enter__()
-        self._gl.glBeginQuery(GL_TIME_ELAPSED, self.name)
+        self._gl.glBeginQuery(self.target, self.name)
         return self
 
     def __exit__(self, *exc):
         if self._fallback is not None:
             return self._fallback.__exit__(*exc)
-        self._gl.glEndQuery(GL_TIME_ELAPSED)
+        self._gl.glEndQuery(self.target)
         return False
 
     @property
-    def elapsed(self) -> int:
-        """Nanoseconds the block took on the GPU (waits for the result)."""
+    def result(self) -> int:
+        """The query's value (waits for the GPU to finish the block)."""
         if self._fallback is not None:
-            return self._fallback.elapsed
+            return self._fallback.elapsed if self.target == GL_TIME_ELAPSED else self._fallback.samples
         out = ctypes.c_uint64(0)
         self._gl.glGetQueryObjectui64v(self.name, GL_QUERY_RESULT, ctypes.byref(out))
         return int(out.value)
@@ -50,3 +53,25 @@ class TimerQuery:
             name = ctypes.c_uint(self.name)
             self._gl.glDeleteQueries(1, ctypes.byref(name))
             self.name = 0
+
+
+class TimerQuery(_Query):
+    """GL_TIME_ELAPSED around a block: `elapsed` nanoseconds."""
+
+    target = GL_TIME_ELAPSED
+
+    @property
+    def elapsed(self) -> int:
+        """Nanoseconds the block took on the GPU (waits for the result)."""
+        return self.result
+
+
+class SamplesQuery(_Query):
+    """GL_SAMPLES_PASSED around a block: `samples` that passed the depth test."""
+
+    target = GL_SAMPLES_PASSED
+
+    @property
+    def samples(self) -> int:
+        """Samples that passed (waits for the result)."""
+        return self.result

@@ -124,3 +124,24 @@ def test_frame_loop_with_the_compute_rasterizer(renderer_factory):
     exact = r.render(scene, SIZE, SIZE)
     assert "fragments_of" not in exact.stats
     assert loop[-1].stats["fragments"]["stored"] == exact.stats["fragments"]["stored"] > 6 * 1000
+
+
+@pytest.mark.parametrize("method", ["unsorted_blend", "stochastic"])
+def test_blending_methods_read_their_sample_counts_a_frame_late(renderer_factory, method):
+    """Hardware blending counts fragments with a samples-passed query; reading it mid-frame waited for the GPU."""
+    small = layered_quads_scene(n_layers=2, order="shuffled", seed=9, with_opaque=False)
+    deep = layered_quads_scene(n_layers=7, order="shuffled", seed=9, with_opaque=False)
+    r = renderer_factory("exact", method=method)
+    want_small = r.render(small, SIZE, SIZE).stats["fragments"]
+    want_deep = r.render(deep, SIZE, SIZE).stats["fragments"]
+    assert want_deep["blended"] > want_small["blended"] > 0
+    first = r.render(small, SIZE, SIZE, read_back=False)  # nothing pending: its own counts
+    assert "fragments_of" not in first.stats and first.stats["fragments"] == want_small
+    late = r.render(deep, SIZE, SIZE, read_back=False)
+    assert late.stats["fragments_of"] == "previous frame" and late.stats["fragments"] == want_small
+    again = r.render(deep, SIZE, SIZE, read_back=False)
+    assert again.stats["fragments"] == want_deep
+    exact = r.render(small, SIZE, SIZE)  # a read-back frame reads its own
+    assert "fragments_of" not in exact.stats and exact.stats["fragments"] == want_small
+    if method == "stochastic":
+        assert want_deep["depth_pass"] > want_small["depth_pass"] > 0

@@ -360,3 +360,24 @@ def test_timer_queries_are_deleted_on_release(host_ctx):
         name = q.name
         q.release()
         assert not gl.glIsQuery(name) and q.name == 0
+
+
+def test_blending_sample_queries_are_deleted_on_release(host_ctx):
+    """unsorted_blend's samples-passed queries (two, alternating by frame) are deleted with the renderer."""
+    from guaca_py import Renderer
+    from guaca_py.host_state import raw_functions
+    from guaca_py.scene.loader import load_scene_text
+
+    scene = load_scene_text(
+        "camera: {position: [0, 0, 3], target: [0, 0, 0]}\nnodes:\n"
+        "  - {mesh: {primitive: quad, size: [4, 4]}, material: {description: unlit, uniforms: {color: [1, 0, 0], alpha: 0.5}}}\n"
+    )
+    with host_ctx:
+        gl = raw_functions()
+        r = Renderer("exact", ctx=host_ctx, method="unsorted_blend")
+        counts = [r.render(scene, 32, 32, read_back=False).stats["fragments"]["blended"] for _ in range(3)]
+        assert counts == [32 * 32] * 3
+        names = [q.name for q in r.method._queries.values()]
+        assert len(names) == 2 and all(gl.glIsQuery(n) for n in names)
+        r.release()
+        assert not any(gl.glIsQuery(n) for n in names)

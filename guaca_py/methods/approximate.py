@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 
+from ..gpu_timer import SamplesQuery
 from ..pipeline.settings import Setting
 from .base import TransparencyMethod
 
@@ -54,7 +55,12 @@ class ForwardBlendMethod(TransparencyMethod):
         self._targets: list = []
         self._key = None
         self._pixels = 0
-        self._fragments = 0
+        # samples-passed queries by (count name, frame parity): a frame loop without read-back reads
+        # the previous frame's, finished by then, instead of waiting for this frame's (finish)
+        self._queries: dict = {}
+        self._parity = 0
+        self._counted: dict = {}  # this frame's queries by count name
+        self._previous: dict | None = None  # the previous frame's, in a loop without read-back
 
     # ------------------------------------------------------------------ storage
     def _target_specs(self) -> list[tuple[int, str, tuple]]:
@@ -93,8 +99,8 @@ class ForwardBlendMethod(TransparencyMethod):
         # additive sums in rgb, multiplicative revealage in alpha (one state for both targets)
         return (mgl.ONE, mgl.ONE, mgl.ZERO, mgl.ONE_MINUS_SRC_ALPHA)
 
-    def _blended_pass(self, frame, uniforms: dict | None = None) -> int:
-        """Draw the transparent list once into the accumulation targets; returns fragments blended."""
+    def _blended_pass(self, frame, uniforms: dict | None = None) -> None:
+        """Draw the transparent list once into the accumulation targets, counting fragments as 'blended'."""
         mgl = frame.renderer.moderngl
         ctx = frame.ctx
         self._fbo.depth_mask = False
@@ -103,33 +109,49 @@ class ForwardBlendMethod(TransparencyMethod):
         ctx.depth_func = "<"
         ctx.blend_equation = mgl.FUNC_ADD
         ctx.blend_func = self.blend_state(mgl)
-        query = self.samples_query(ctx)
         try:
-            with query:
+            with self.samples_query(ctx, "blended"):
                 frame.draw_transparent(uniforms or {}, per_program=frame.bind_lights, order=self.draw_order(frame))
         finally:
             ctx.disable(mgl.BLEND)
             ctx.blend_func = mgl.DEFAULT_BLENDING
             self._fbo.depth_mask = True
-        return int(query.samples)
 
-    def samples_query(self, ctx):
-        """One reusable samples-passed query (moderngl queries cannot be released, so make one)."""
-        if getattr(self, "_query", None) is None:
-            self._query = ctx.query(samples=True)
-        return self._query
+    def samples_query(self, ctx, name: str):
+        """This frame's samples-passed query for the count `name` (read in finish, not here: reading waits)."""
+        key = (name, self._parity)
+        if key not in self._queries:
+            self._queries[key] = SamplesQuery(ctx)
+        self._counted[name] = self._queries[key]
+        return self._queries[key]
+
+    def counts(self, frame) -> dict[str, int]:
+        """Fragment counts by name: this frame's, or in a loop without read-back the previous frame's.
+
+        Reading a query waits for the GPU to finish its block; in the middle of a frame that left
+        the GPU idle while the CPU submitted the rest (a sync per frame in an application's loop).
+        """
+        now, self._counted, self._parity = self._counted, {}, self._parity ^ 1
+        if frame.late_counters and self._previous is not None:
+            late, self._previous = self._previous, now
+            frame.stats["fragments_of"] = "previous frame"
+            return {name: int(q.samples) for name, q in late.items()}
+        self._previous = now if frame.late_counters else None
+        return {name: int(q.samples) for name, q in now.items()}
 
     def render_transparent(self, frame) -> None:
         """One geometry pass, shading and blending every transparent fragment in front of the opaque depth."""
         self._phase = "geometry"
         try:
-            self._fragments = self._blended_pass(frame)
+            self._blended_pass(frame)
         finally:
             self._phase = "composite"
 
     def finish(self, frame) -> bool:
         """Report fragments blended (nothing is dropped or merged: blending keeps every fragment)."""
-        frame.stats["fragments"] = {"stored": self._fragments, "blended": self._fragments, "dropped": 0, "merged": 0}
+        counts = self.counts(frame)
+        blended = counts.pop("blended", 0)
+        frame.stats["fragments"] = {"stored": blended, "blended": blended, "dropped": 0, "merged": 0, **counts}
         frame.stats["geometry_passes"] = int(self.geometry_passes)
         return False
 
@@ -171,8 +193,12 @@ class ForwardBlendMethod(TransparencyMethod):
         self._fbo, self._clear, self._targets, self._key = None, None, [], None
 
     def release(self) -> None:
-        """Free the targets."""
+        """Free the targets and the queries."""
         self._release_targets()
+        for q in self._queries.values():
+            q.release()
+        self._queries.clear()
+        self._counted, self._previous = {}, None
 
 
 class UnsortedBlend(ForwardBlendMethod):

@@ -39,7 +39,6 @@ class StochasticTransparency(ForwardBlendMethod):
         super().__init__(settings, caps)
         self._depth = None
         self._depth_pixels = 0
-        self._depth_fragments = 0
 
     @property
     def samples(self) -> int:
@@ -80,23 +79,15 @@ class StochasticTransparency(ForwardBlendMethod):
             ctx.disable(mgl.BLEND)
             ctx.depth_func = "<"
             self._depth.bind_to_storage_buffer(0)
-            query = self.samples_query(ctx)
-            with query:
+            with self.samples_query(ctx, "depth_pass"):  # reported beside 'blended' (finish)
                 frame.draw_transparent(uniforms)
-            self._depth_fragments = int(query.samples)
             g["depth_only"].depth_mask = True
             ctx.memory_barrier()
             self._phase = "accum"
             self._depth.bind_to_storage_buffer(0)
-            self._fragments = self._blended_pass(frame, uniforms)
+            self._blended_pass(frame, uniforms)
         finally:
             self._phase = "composite"
-
-    def finish(self, frame) -> bool:
-        """Fragments blended in the accumulation pass; both passes counted."""
-        super().finish(frame)
-        frame.stats["fragments"]["depth_pass"] = self._depth_fragments
-        return False
 
     def template_vars(self) -> dict:
         """Sample count and correction on top of the shared variables."""
