@@ -145,3 +145,18 @@ def test_blending_methods_read_their_sample_counts_a_frame_late(renderer_factory
     assert "fragments_of" not in exact.stats and exact.stats["fragments"] == want_small
     if method == "stochastic":
         assert want_deep["depth_pass"] > want_small["depth_pass"] > 0
+
+
+def test_kbuffer_reads_its_counters_a_frame_late(renderer_factory):
+    """The k-buffer's counters follow the A-buffer's pattern: without read-back, the previous frame's."""
+    small = layered_quads_scene(n_layers=2, order="shuffled", seed=10, with_opaque=False)
+    deep = layered_quads_scene(n_layers=6, order="shuffled", seed=10, with_opaque=False)
+    r = renderer_factory("exact", method="kbuffer")
+    want_small = r.render(small, SIZE, SIZE).stats["fragments"]
+    want_deep = r.render(deep, SIZE, SIZE).stats["fragments"]
+    assert want_deep["total"] > want_small["total"] > 0
+    r.render(small, SIZE, SIZE, read_back=False)
+    late = r.render(deep, SIZE, SIZE, read_back=False)
+    assert late.stats["fragments_of"] == "previous frame" and late.stats["fragments"] == want_small
+    assert r.render(deep, SIZE, SIZE, read_back=False).stats["fragments"] == want_deep
+    assert r.render(deep, SIZE, SIZE).stats["fragments"] == want_deep

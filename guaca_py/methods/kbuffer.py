@@ -93,8 +93,15 @@ class KBuffer(TransparencyMethod):
         g["fbo"].depth_mask = True
 
     def finish(self, frame) -> bool:
-        """Counters → stats; overflow and lock-guard drops become warnings."""
-        c = self._counters.read()
+        """Counters → stats (a frame late in a loop without read-back); overflow and lock-guard drops become warnings."""
+        late = self._counters.staged() if frame.late_counters else None
+        if late is not None:  # the previous frame's, finished by now: reading this frame's would wait for it
+            c = late[0]
+            frame.stats["fragments_of"] = "previous frame"
+        else:
+            c = self._counters.read()
+        if frame.late_counters:
+            self._counters.stage()
         evicted = c["inserted"] - c["filled"]  # every insert into a full pixel evicts one
         rejected = c["merged"] + c["dropped"] - evicted  # fragments that arrived behind a full pixel
         total = c["inserted"] + rejected + c["guard"]
