@@ -10,7 +10,8 @@
 #
 # Scenes: dragons, sponza_dabrovic_v1/v2, hairball_v1/v2 (SCENES_SUBSET picks some), read from .scenes/
 # (a git-ignored copy of ../shared/scenes; the hairball mesh and views are generated there when missing,
-# ~55 MB, a few seconds). FLIP is reported where flip-evaluator is installed (pip install ".[accuracy]").
+# ~55 MB, a few seconds). FLIP is reported where flip-evaluator is installed (pip install ".[accuracy]";
+# on a machine without network, its wheel in .whl/: see docs/antialiasing.md).
 #
 # Methods. Dragons and Sponza: a representative set (one-pass A-buffers, counted storage, multi-layer
 # peeling, every approximate method); FULL=1: every method the device runs. Hairballs (15.6M and 59.8M
