@@ -260,16 +260,11 @@ def empty_and_experiment(args, ctx, out: dict) -> None:
     os.environ.pop("GUACA_DIRECT_CPU_ACCESS", None)
 
 
-# exact one-pass A-buffer methods, held to <= 2x unsorted_blend
-ONE_PASS_EXACT = (
-    "presort_lf",
-    "presort_lf_et",
-    "presort_lf_merge2_et",
-    "presort_cs",
-    "presort_cs_et",
-    "post_sort",
-    "post_merge16",
-)
+def one_pass_exact() -> set[str]:
+    """The exact one-pass A-buffer methods (those that take compute-rasterized fragments), held to <= 2x unsorted_blend."""
+    from guaca_py.methods import method_class, method_ids
+
+    return {m for m in method_ids() if method_class(m).compute_raster and method_class(m).exact}
 
 
 def acceptance_lines(out: dict) -> list[str]:
@@ -287,7 +282,7 @@ def acceptance_lines(out: dict) -> list[str]:
         cells = [stem, "—", f"{target:.2f}", "—", "—"]
         if et:
             cells[1], cells[3] = f"{et['total_ms']:.3f}", f"{et['total_ms'] / target:.1f}x"
-        exact = {k: r for k, r in timed.items() if k.split(" (")[0] in ONE_PASS_EXACT}
+        exact = {k: r for k, r in timed.items() if k.split(" (")[0] in one_pass_exact()}
         if blend and exact:
             key, worst = max(exact.items(), key=lambda kv: kv[1]["total_ms"])
             cells[4] = f"{worst['total_ms'] / blend['total_ms']:.2f}x ({key})"
