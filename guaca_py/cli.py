@@ -67,8 +67,10 @@ def _cmd_render(args) -> int:
         print(f"  {name:<14} {p['ms']:10.3f} ms")
     ra = s.get("raster")
     if ra:
+        order = f", triangle order {ra['compute']['order']}" if "compute" in ra else ""
         print(
-            f"transparent raster ({ra['setting']}): {ra['compute_draws']} draws compute, {ra['hardware_draws']} hardware"
+            f"transparent raster ({ra['setting']}): {ra['compute_draws']} draws compute, "
+            f"{ra['hardware_draws']} hardware{order}"
         )
     fr = s.get("fragments", {})
     print("fragments: " + ", ".join(f"{k} {v}" for k, v in fr.items()))
@@ -110,12 +112,15 @@ def _cmd_view(args) -> int:
 
 def _cmd_info(args) -> int:
     from .context import probe_capabilities
-    from .raster.choice import device_rule
+    from .raster.choice import device_rule, order_rule
 
     caps = probe_capabilities()  # released again: the caller's current context stays current
     d = caps.as_dict()
     if args.json:
-        print(json.dumps(dict(d, insertion_path=caps.insertion_path, raster_auto=device_rule(caps)), indent=2))
+        info = dict(
+            d, insertion_path=caps.insertion_path, raster_auto=device_rule(caps), raster_order_auto=order_rule()
+        )
+        print(json.dumps(info, indent=2))
         return 0
     print(f"device:    {caps.renderer}")
     print(f"vendor:    {caps.vendor}")
@@ -133,6 +138,7 @@ def _cmd_info(args) -> int:
         f"({'64-bit atomicMax on (depth, pointer)' if caps.insertion_path == '64bit' else '32-bit CAS on immutable nodes'})"
     )
     print(f"transparent raster (raster: auto): {device_rule(caps)}")
+    print(f"compute triangle order (raster_order: auto): {order_rule()}")
     return 0
 
 

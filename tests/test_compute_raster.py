@@ -444,13 +444,18 @@ def test_command_line_set_and_info(capsys, tmp_path):
     from guaca_py.cli import main
 
     assert main(["info"]) == 0
-    assert "transparent raster (raster: auto):" in capsys.readouterr().out
+    info = capsys.readouterr().out
+    assert "transparent raster (raster: auto):" in info and "compute triangle order (raster_order: auto): depth" in info
     args = ["render", "--pipeline", "exact", "--width", "48", "--height", "40", "--out", str(tmp_path / "o.png")]
     assert main([*args, "--set", "raster=compute", "--stats", str(tmp_path / "s.json")]) == 0
     out = capsys.readouterr().out
     stats = json.loads((tmp_path / "s.json").read_text())
     assert stats["raster"]["setting"] == "compute" and stats["raster"]["compute_draws"] > 0
     assert "transparent raster (compute)" in out and stats["memory"]["raster_vertices"] > 0
+    # the default method has early termination: depth order; the setting overrides it
+    assert stats["raster"]["compute"]["order"] == "depth" and "triangle order depth" in out
+    assert main([*args, "--set", "raster=compute", "--set", "raster_order=tile"]) == 0
+    assert "triangle order tile" in capsys.readouterr().out
     assert main([*args, "--method", "depth_peeling", "--set", "raster=compute"]) == 2
     assert "depth_peeling" in capsys.readouterr().err
 

@@ -45,6 +45,14 @@ def auto_rule() -> str:
     )
 
 
+def order_rule() -> str:
+    """The `raster_order: auto` rule in words (printed by `guaca info`)."""
+    return (
+        "depth (front to back) for methods with early termination, tile (screen tiles, back to front "
+        "within each) for the others"
+    )
+
+
 def device_rule(caps) -> str:
     """What `auto` does on this device, and why (for `guaca info`)."""
     if caps.software:

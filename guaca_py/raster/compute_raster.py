@@ -378,6 +378,7 @@ class ComputeRasterizer:
         if frame.late_counters:
             self._state.stage()
         frame.stats.setdefault("raster", {})["compute"] = {
+            "order": self.renderer.method.raster_order(),
             "triangles": self._triangles,
             "large_triangles": c["large_total"],
             "visible_triangles": c["visible_total"],
