@@ -85,14 +85,18 @@ def time_frames(renderer, scene, size: int, warmup_s: float, frames: int, warmup
     return row
 
 
-def loop_wall_ms(renderer, scene, size: int, frames: int, stats: bool) -> float:
-    """Wall time per frame of `frames` renders without read-back, from an idle GPU to the last one's end."""
+def loop_wall_ms(renderer, scene, size: int, frames: int, stats: bool) -> dict:
+    """Per frame of `frames` renders without read-back: wall time from an idle GPU to the last one's end,
+    wall time inside render() calls, and CPU time of this process (render() taking as long as the
+    GPU while the CPU idles means it waited for the GPU: a sync in the frame)."""
     renderer.ctx.finish()
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     for _ in range(frames):
         renderer.render(scene, size, size, read_back=False, stats=stats)
+    t1, c1 = time.perf_counter(), time.process_time()
     renderer.ctx.finish()
-    return (time.perf_counter() - t0) * 1e3 / frames
+    t2 = time.perf_counter()
+    return {"wall": (t2 - t0) * 1e3 / frames, "submit": (t1 - t0) * 1e3 / frames, "cpu": (c1 - c0) * 1e3 / frames}
 
 
 def time_once(renderer, scene, size: int, warmup_s: float, frames: int, warmup_read_back: bool = False) -> dict:
@@ -118,14 +122,16 @@ def time_once(renderer, scene, size: int, warmup_s: float, frames: int, warmup_r
         # frame loops as an application runs them, without read-back: with per-pass timers (the
         # previous frame's), and without them (stats=False) over more frames, so that the GPU's
         # idle start (the first frame's CPU work) and the final wait weigh less
-        loop_ms = loop_wall_ms(renderer, scene, size, frames, stats=True)
-        loop_plain_ms = loop_wall_ms(renderer, scene, size, LOOP_FRAMES if frames > 3 else frames, stats=False)
+        loop_timed = loop_wall_ms(renderer, scene, size, frames, stats=True)
+        loop = loop_wall_ms(renderer, scene, size, LOOP_FRAMES if frames > 3 else frames, stats=False)
     last = renderer.render(scene, size, size)
     return {
         "passes_ms": {k: statistics.median(v) for k, v in samples.items()},
         "total_ms": statistics.median(totals),
-        "loop_wall_ms": loop_plain_ms,
-        "loop_wall_timed_ms": loop_ms,
+        "loop_wall_ms": loop["wall"],
+        "loop_submit_ms": loop["submit"],  # inside render() calls
+        "loop_cpu_ms": loop["cpu"],
+        "loop_wall_timed_ms": loop_timed["wall"],
         "warmup_frames": n_warm,
         "frames": frames,
         "fragments": last.stats.get("fragments", {}),
@@ -290,6 +296,29 @@ def acceptance_lines(out: dict) -> list[str]:
     return lines
 
 
+def loop_lines(out: dict) -> list[str]:
+    """Per row: GPU total against the application loop's wall time, time inside render() and CPU time."""
+    rows = [
+        (stem, key, r)
+        for stem, scene in out.get("scenes", {}).items()
+        for key, r in scene.items()
+        if isinstance(r, dict) and "loop_submit_ms" in r
+    ]
+    if not rows:
+        return []
+    lines = ["", f"## Frame loop ({LOOP_FRAMES} frames, no read-back, no timers), ms per frame", ""]
+    lines += [
+        "| scene | method | GPU total | loop wall | wall - GPU | inside render() | CPU |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for stem, key, r in rows:
+        lines.append(
+            f"| {stem} | {key} | {r['total_ms']:.3f} | {r['loop_wall_ms']:.3f} | {r['loop_wall_ms'] - r['total_ms']:+.3f} | "
+            f"{r['loop_submit_ms']:.3f} | {r['loop_cpu_ms']:.3f} |"
+        )
+    return lines
+
+
 def write_markdown(out: dict, path: Path) -> None:
     """paper_table.md: Table 1, stacks, empty frame and the experiment."""
     lines = [f"# Table 1 at {out['size']}² on {out['device']}", "", f"Command: `{out['command']}`", ""]
@@ -321,6 +350,7 @@ def write_markdown(out: dict, path: Path) -> None:
                 f"{clock} | {row['ratio_to_paper']:.2f} |"
             )
     lines += acceptance_lines(out)
+    lines += loop_lines(out)
     if out.get("stacks"):
         lines += ["", "## Full-screen stacks (back to front)", ""]
         lines += ["| method | layers | geometry ms | ns / stored fragment | total ms |", "|---|---|---|---|---|"]
