@@ -7,6 +7,8 @@ For every scene, rasterizer (`transparency.raster`) and A-buffer insertion path 
 device's, `32bit`: 64-bit atomics switched off, so the CAS-linked lists), the default pipeline at
 each sample count: per-pass GPU medians after a warm-up at the maximum SM clock (paper_table.py's
 timing), stored fragments, and each count's cost against 1 sample. Writes OUTDIR/aa_cost.{json,md}.
+With GUACA_RASTER_STAGES=1 in the environment it adds the compute rasterizer's time per stage
+(vertex, order, setup, bin, fine; the last frame of each row, which waits for its timestamps).
 """
 
 from __future__ import annotations
@@ -90,6 +92,15 @@ def markdown(rows: list[dict], command: str) -> str:
             f"{head} {p.get('geometry', 0):.3f} | {p.get('composite', 0):.3f} | {r['total_ms']:.3f} | {ratio} | "
             f"{r['fragments'].get('stored', '—')} | {clock} |"
         )
+    stages = [(r, (r.get("raster") or {}).get("compute", {}).get("stage_ms")) for r in rows]
+    stages = [(r, st) for r, st in stages if st]
+    if stages:
+        names = ("vertex", "order", "setup", "bin", "fine")
+        out += ["", "## Compute rasterizer stages (GPU ms, last frame of each row)", ""]
+        out += ["| scene | path | samples | " + " | ".join(names) + " |", "|---|---|---|" + "---|" * len(names)]
+        for r, st in stages:
+            cells = " | ".join(f"{st.get(n, 0.0):.3f}" for n in names)
+            out.append(f"| {r['scene']} | {r['path']} | {r['samples']} | {cells} |")
     return "\n".join(out) + "\n"
 
 

@@ -6,7 +6,8 @@
 #   source .gl/gpu-env.sh && PART=order bash benchmarks/pending_gpu_checks.sh "$OUT"   # ~8 min
 # a: the whole test suite on the NVIDIA variants (after `auto` took the tile order: ~2 min), then
 #    Table 1 with raster: auto (~2.5 min: loop wall after the blending methods stopped waiting for
-#    their samples query mid-frame), then anti-aliasing cost on the dragons (~15 s)
+#    their samples query mid-frame), then anti-aliasing cost on the dragons (~15 s), then the
+#    compute rasterizer's time per stage (GUACA_RASTER_STAGES=1) on the dragons and hairball_v2 (~40 s)
 # b: hairball_v2's temporal stability (~5.5 min), the one scene not yet run on the GPU
 # order: the suite, then the compute rasterizer's triangle orders (depth, mesh, tile) per method and
 #    scene (benchmarks/results/h100/raster_order/orders.md)
@@ -25,6 +26,9 @@ if [[ $part == a ]]; then
     > "$work/paper_table_log.txt"
   tail -12 "$work/paper_table_log.txt"
   timeout 60 python3 benchmarks/aa_cost.py "$work/aa_cost" --scenes .scenes --scene-names dragons --samples 1 4 2>&1 | tail -3
+  # where the compute rasterizer's time goes, stage by stage (dragons' x10 target, its AA cost; hairball_v2)
+  GUACA_RASTER_STAGES=1 timeout 90 python3 benchmarks/aa_cost.py "$work/raster_stages" --scenes .scenes \
+    --scene-names dragons hairball_v2 --samples 1 4 2>&1 | tail -3
 elif [[ $part == b ]]; then
   PART=stability PART_S=340 SCENES_SUBSET="hairball_v2" bash benchmarks/aa_gpu_run.sh "$work/aa" \
     > "$work/aa_stability.txt" 2>&1

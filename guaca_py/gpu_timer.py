@@ -8,6 +8,7 @@ from .host_state import raw_functions_or_none
 
 GL_TIME_ELAPSED = 0x88BF
 GL_SAMPLES_PASSED = 0x8914
+GL_TIMESTAMP = 0x8E28
 GL_QUERY_RESULT = 0x8866
 
 
@@ -75,3 +76,48 @@ class SamplesQuery(_Query):
     def samples(self) -> int:
         """Samples that passed (waits for the result)."""
         return self.result
+
+
+class Timestamps:
+    """GPU timestamps at marked points of the command stream (glQueryCounter: allowed inside a timer query).
+
+    Reading them waits for the GPU: for profiling only (GUACA_RASTER_STAGES=1), never on the hot path.
+    """
+
+    def __init__(self):
+        self._gl = raw_functions_or_none()
+        self._free: list[int] = []
+        self._marks: list[tuple[str, int]] = []
+
+    def mark(self, label: str) -> None:
+        """Record the GPU time when the commands issued so far have run, under `label`."""
+        if self._gl is None:
+            return
+        if not self._free:
+            name = ctypes.c_uint(0)
+            self._gl.glGenQueries(1, ctypes.byref(name))
+            self._free.append(name.value)
+        name = self._free.pop()
+        self._gl.glQueryCounter(name, GL_TIMESTAMP)
+        self._marks.append((label, name))
+
+    def spans_ms(self) -> dict[str, float]:
+        """Milliseconds from each mark to the next, summed by the later mark's label; clears the marks."""
+        times = []
+        for label, name in self._marks:
+            out = ctypes.c_uint64(0)
+            self._gl.glGetQueryObjectui64v(name, GL_QUERY_RESULT, ctypes.byref(out))
+            times.append((label, int(out.value)))
+            self._free.append(name)
+        self._marks = []
+        spans: dict[str, float] = {}
+        for (_, t0), (label, t1) in zip(times, times[1:]):
+            spans[label] = spans.get(label, 0.0) + (t1 - t0) / 1e6
+        return spans
+
+    def release(self) -> None:
+        """Delete the query objects (the context must be current)."""
+        if self._gl is not None:
+            for name in self._free + [n for _, n in self._marks]:
+                self._gl.glDeleteQueries(1, ctypes.byref(ctypes.c_uint(name)))
+        self._free, self._marks = [], []

@@ -120,6 +120,7 @@ _SIGNATURES = {
     "glBeginQuery": (None, [_u, _u]),
     "glEndQuery": (None, [_u]),
     "glGetQueryObjectui64v": (None, [_u, _u, _p]),
+    "glQueryCounter": (None, [_u, _u]),
     "glGetIntegerv": (None, [_u, _p]),
     "glGetIntegeri_v": (None, [_u, _u, _p]),
     "glGetInteger64i_v": (None, [_u, _u, _p]),

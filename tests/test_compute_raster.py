@@ -670,3 +670,18 @@ def test_tile_order_runs_screen_tiles_one_after_another(renderer_factory, method
         steps = np.diff(depth_rank[keys == k])
         assert (steps >= 0).all() if method == "presort_lf_et" else (steps <= 0).all(), depth_rank[keys == k]
     assert frame.stats["fragments"]["overflow"] == 0
+
+
+def test_stage_profile_reports_each_stage(renderer_factory, monkeypatch):
+    # GUACA_RASTER_STAGES=1 (profiling only: reading the timestamps waits for the GPU) adds the GPU
+    # time of each compute-raster stage to the frame's stats; off by default
+    scene = layered_quads_scene(n_layers=4, order="shuffled", seed=2)
+    plain = renderer_factory("exact", method="presort_lf", method_overrides={"raster": "compute"})
+    assert "stage_ms" not in plain.render(scene, 48, 48).stats["raster"]["compute"]
+    monkeypatch.setenv("GUACA_RASTER_STAGES", "1")
+    r = renderer_factory("exact", method="presort_lf", method_overrides={"raster": "compute"})
+    for _ in range(2):  # marks do not pile up from frame to frame
+        stages = r.render(scene, 48, 48).stats["raster"]["compute"]["stage_ms"]
+        assert set(stages) == {"vertex", "order", "setup", "bin", "fine"}, stages
+        assert all(v >= 0.0 for v in stages.values())
+    assert len(r.raster.compute._stages._marks) == 0

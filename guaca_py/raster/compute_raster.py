@@ -23,12 +23,14 @@ report what they hold and drop.
 from __future__ import annotations
 
 import math
+import os
 import weakref
 
 import numpy as np
 
 from ..errors import ConfigError
 from ..gpu_counters import CounterBlock
+from ..gpu_timer import Timestamps
 from ..limits import require_bytes
 from ..shaders import SourceMap
 from .material_support import compute_material
@@ -123,6 +125,8 @@ class ComputeRasterizer:
         self.small_area = SMALL_AREA
         self.medium_area = MEDIUM_AREA
         self._materials: dict[int, tuple] = {}  # id(material) -> (material, ComputeMaterial)
+        # GUACA_RASTER_STAGES=1: GPU time per stage in stats (reading it waits for the GPU: profiling only)
+        self._stages = Timestamps() if os.environ.get("GUACA_RASTER_STAGES", "") not in ("", "0") else None
         self._program_sets: dict[tuple, tuple] = {}  # program key -> the four kernels (built once)
 
     # ------------------------------------------------------------------ programs
@@ -331,9 +335,12 @@ class ComputeRasterizer:
             d.write_transform(vert)
             vert["gua_vertex_count"] = len(d.mesh.positions)
             r._set_material_uniforms(vert, d)
+            self._mark("other")
             vert.run(*_grid(len(d.mesh.positions)))
             ctx.memory_barrier()
+            self._mark("vertex")
             self._order_pass(frame, d, order_kernel, ranges[d.index])
+            self._mark("order")
             for prog in (setup, binner, fine):
                 frame.set_frame_uniforms(prog)
                 for k, v in uniforms.items():
@@ -353,10 +360,18 @@ class ComputeRasterizer:
             setup["gua_large_capacity"] = self.large_capacity
             setup.run_indirect(self._state.buffer, STATE_WORDS.index("setup_x") * 4)
             ctx.memory_barrier()
+            self._mark("setup")
             binner["gua_job_capacity"] = self.job_capacity
             self._queued_stage(args, 1, self.large_capacity, binner, "bin_x")
+            self._mark("bin")
             self._queued_stage(args, 2, self.job_capacity, fine, "fine_x")
+            self._mark("fine")
             self._triangles += d.mesh.triangle_count
+
+    def _mark(self, stage: str) -> None:
+        """A GPU timestamp at the end of `stage` when stage profiling is on."""
+        if self._stages is not None:
+            self._stages.mark(stage)
 
     def _queued_stage(self, args, mode: int, capacity: int, prog, dispatch_word: str) -> None:
         """Clamp the queue the last stage filled to `capacity` (args kernel `mode`), then run `prog` over it."""
@@ -387,6 +402,10 @@ class ComputeRasterizer:
             "large_dropped": c["large_dropped"],
             "tile_jobs_dropped": c["jobs_dropped"],
         }
+        if self._stages is not None:  # stage profiling: this frame's spans (waits for the GPU)
+            spans = self._stages.spans_ms()
+            spans.pop("other", None)  # from one draw's end to the next draw's start: not a stage
+            frame.stats["raster"]["compute"]["stage_ms"] = {k: round(v, 4) for k, v in spans.items()}
         frame.stats.setdefault("memory", {}).update(self.memory(c["large_peak"], c["jobs_peak"]))
         dropped = c["large_dropped"] or c["jobs_dropped"]
         if dropped and late:  # grow for the next frame; this one is not rendered again
@@ -430,6 +449,8 @@ class ComputeRasterizer:
 
     def release(self) -> None:
         """Free all buffers."""
+        if self._stages is not None:
+            self._stages.release()
         if self._state is not None:
             self._state.release()
         for b in (
