@@ -1,7 +1,7 @@
 """What anti-aliasing costs, pass by pass: the default pipeline at 1 and N samples per scene and path.
 
 Usage: python benchmarks/aa_cost.py OUTDIR --scenes DIR [--scene-names NAME ...] [--size 1024]
-                                   [--samples 1 4] [--raster auto hardware] [--paths default 32bit]
+                                   [--samples 1 4] [--raster auto hardware compute/mesh] [--paths default 32bit]
                                    [--warmup-s 1.5] [--frames 8]
 For every scene, rasterizer (`transparency.raster`) and A-buffer insertion path (`default`: the
 device's, `32bit`: 64-bit atomics switched off, so the CAS-linked lists), the default pipeline at
@@ -45,10 +45,12 @@ def run(args) -> list[dict]:
                 for n in args.samples:
                     row = {"scene": name, "path": caps.insertion_path, "rasterizer": raster, "samples": n}
                     try:
+                        kind, _, order = raster.partition("/")  # compute/ORDER: with that raster_order
+                        overrides = {"raster": kind, **({"raster_order": order} if order else {})}
                         r = Renderer(
                             with_samples(load_pipeline("default"), n),
                             ctx=ctx,
-                            method_overrides={"raster": raster},
+                            method_overrides=overrides,
                             restore_host_state=False,
                         )
                         row.update(time_frames(r, scene, args.size, args.warmup_s, args.frames))
@@ -111,7 +113,12 @@ def main(argv=None) -> int:
     ap.add_argument("--scene-names", nargs="*", default=["dragons"])
     ap.add_argument("--size", type=int, default=1024)
     ap.add_argument("--samples", nargs="*", type=int, default=[1, 4])
-    ap.add_argument("--raster", nargs="*", default=["auto"], choices=["auto", "hardware", "compute"])
+    ap.add_argument(
+        "--raster",
+        nargs="*",
+        default=["auto"],
+        help="auto, hardware, compute or compute/ORDER (with raster_order ORDER)",
+    )
     ap.add_argument("--paths", nargs="*", default=["default"], choices=list(PATHS))
     ap.add_argument("--warmup-s", type=float, default=1.5)
     ap.add_argument("--frames", type=int, default=8)

@@ -7,7 +7,8 @@
 # a: the whole test suite on the NVIDIA variants (after `auto` took the tile order: ~2 min), then
 #    Table 1 with raster: auto (~2.5 min: loop wall after the blending methods stopped waiting for
 #    their samples query mid-frame), then anti-aliasing cost on the dragons (~15 s), then the
-#    compute rasterizer's time per stage (GUACA_RASTER_STAGES=1) on the dragons and hairball_v2 (~40 s)
+#    compute rasterizer's time per stage (GUACA_RASTER_STAGES=1) on the dragons and hairball_v2 (~40 s),
+#    then the dragons' AA cost in each triangle order (~40 s)
 # b: hairball_v2's temporal stability (~5.5 min), the one scene not yet run on the GPU
 # order: the suite, then the compute rasterizer's triangle orders (depth, mesh, tile) per method and
 #    scene (benchmarks/results/h100/raster_order/orders.md)
@@ -29,6 +30,10 @@ if [[ $part == a ]]; then
   # where the compute rasterizer's time goes, stage by stage (dragons' x10 target, its AA cost; hairball_v2)
   GUACA_RASTER_STAGES=1 timeout 90 python3 benchmarks/aa_cost.py "$work/raster_stages" --scenes .scenes \
     --scene-names dragons hairball_v2 --samples 1 4 2>&1 | tail -3
+  # the dragons store 3.1x the fragments at 4 samples and early termination culls ~2 % of them there:
+  # does an order with cheaper insertion (index or back to front) pay at 4 samples?
+  timeout 60 python3 benchmarks/aa_cost.py "$work/aa_cost_orders" --scenes .scenes --scene-names dragons \
+    --samples 1 4 --raster compute/depth compute/mesh compute/tile 2>&1 | tail -3
 elif [[ $part == b ]]; then
   PART=stability PART_S=340 SCENES_SUBSET="hairball_v2" bash benchmarks/aa_gpu_run.sh "$work/aa" \
     > "$work/aa_stability.txt" 2>&1
