@@ -20,12 +20,16 @@ if [[ -f .scenes/make_hairball.py && ! -f .scenes/hairball.ply ]]; then
   (cd .scenes && python3 make_hairball.py . > /dev/null)
 fi
 part=${PART:-a}
+# packed after every step: a call cut at its time limit still returns what was measured
+pack() { tar -czf "$out/pending_$part.tgz" -C "$work" .; }
 if [[ $part == a ]]; then
   timeout 200 python3 -m pytest -q -p no:cacheprovider tests > "$work/pytest_gpu.txt" 2>&1
   tail -3 "$work/pytest_gpu.txt"
+  pack
   timeout 240 python3 benchmarks/paper_table.py "$work/paper_table" --raster auto 2>&1 | grep -v "^\s*$" \
     > "$work/paper_table_log.txt"
   tail -12 "$work/paper_table_log.txt"
+  pack
   timeout 60 python3 benchmarks/aa_cost.py "$work/aa_cost" --scenes .scenes --scene-names dragons --samples 1 4 2>&1 | tail -3
   # where the compute rasterizer's time goes, stage by stage (dragons' x10 target, its AA cost; hairball_v2)
   GUACA_RASTER_STAGES=1 timeout 90 python3 benchmarks/aa_cost.py "$work/raster_stages" --scenes .scenes \
@@ -45,5 +49,5 @@ elif [[ $part == order ]]; then
     --raster compute/depth compute/mesh compute/tile \
     --methods presort_lf_et presort_lf presort_cs_et post_sort post_merge16 2>&1 | grep -v "^\s*$" | tail -80
 fi
-tar -czf "$out/pending_$part.tgz" -C "$work" .
+pack
 ls -la "$out"
