@@ -87,12 +87,6 @@ def _block_mean_spread(image: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarra
     return acc / (k * k), (hi.astype(np.float64) - lo).max(axis=-1)
 
 
-def box_filter(image: np.ndarray, k: int) -> np.ndarray:
-    """Average k x k blocks of an (H*k, W*k, C) image."""
-    h, w = image.shape[0] // k, image.shape[1] // k
-    return np.asarray(image, dtype=np.float64).reshape(h, k, w, k, -1).mean(axis=(1, 3))
-
-
 def rmse_255(image: np.ndarray, reference: np.ndarray, mask: np.ndarray | None = None) -> float:
     """RMSE in 1/255 of two linear images clipped to [0, 1], over `mask` (all pixels if None)."""
     d = (np.clip(np.asarray(image, np.float64), 0, 1) - np.clip(reference, 0, 1)) * 255.0
