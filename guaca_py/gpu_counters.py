@@ -70,6 +70,15 @@ class CounterBlock:
         self._late_valid = False
         return dict(zip(self.names, np.frombuffer(self._late.read(), dtype=np.uint32).tolist())), self._late_tag
 
+    def latest(self, late: bool) -> tuple[dict[str, int], object, bool]:
+        """(counters, stage() tag, whether staged): with `late` (a frame loop without read-back) the
+        counters stage() set aside a frame ago where there are some, which needs no wait; else this
+        frame's (waits for the GPU work that updates them)."""
+        staged = self.staged() if late else None
+        if staged is not None:
+            return staged[0], staged[1], True
+        return self.read(), None, False
+
     def bind(self, binding: int) -> None:
         """Bind as the shader storage block at `binding`."""
         self.buffer.bind_to_storage_buffer(binding)

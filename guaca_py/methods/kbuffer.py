@@ -94,12 +94,9 @@ class KBuffer(TransparencyMethod):
 
     def finish(self, frame) -> bool:
         """Counters → stats (a frame late in a loop without read-back); overflow and lock-guard drops become warnings."""
-        late = self._counters.staged() if frame.late_counters else None
-        if late is not None:  # the previous frame's, finished by now: reading this frame's would wait for it
-            c = late[0]
+        c, _, late = self._counters.latest(frame.late_counters)
+        if late:
             frame.stats["fragments_of"] = "previous frame"
-        else:
-            c = self._counters.read()
         if frame.late_counters:
             self._counters.stage()
         evicted = c["inserted"] - c["filled"]  # every insert into a full pixel evicts one

@@ -145,13 +145,11 @@ class PreSortLF(TransparencyMethod):
         are read instead, which needs no wait: an overflow they show grows the pool for the next
         frame and is reported, but the frame is not rendered again.
         """
-        late = self._counters.staged() if frame.late_counters else None
-        if late is not None:
-            c, capacity = late
-            self._counts = c
+        c, staged_capacity, late = self._counters.latest(frame.late_counters)
+        self._counts = c  # after_composite() reads these again
+        capacity = staged_capacity if late else self.capacity
+        if late:
             frame.stats["fragments_of"] = "previous frame"
-        else:
-            c, capacity = self.read_counters(), self.capacity
         requested = c["alloc"] - 1  # node 0 is the null node
         used = min(requested, capacity - 1)
         # allocations past the pool failed (overflow); the others were linked unless counted unlinked
@@ -176,7 +174,7 @@ class PreSortLF(TransparencyMethod):
             frame.stats.setdefault("warnings", []).append(f"{c['guard']} insertions hit max_steps and were dropped")
         auto = self.settings["budget_mb"] == "auto"
         grow = self.capacity < self.max_capacity(self._pixels)
-        if c["overflow"] and auto and late is not None:
+        if c["overflow"] and auto and late:
             self.capacity_request(int(requested * 1.15) + 1024)  # for the next frame
             return False
         if c["overflow"] and auto and self.regrown < self.settings["max_regrow"] and grow:

@@ -388,8 +388,7 @@ class ComputeRasterizer:
         self._fresh, self._frame = True, None
         # a frame loop without read-back reads the previous frame's totals (finished by now) and sets
         # this frame's aside for the next, so the CPU never waits for this frame here
-        late = self._state.staged() if frame.late_counters else None
-        c = late[0] if late is not None else self._state.read()
+        c, _, late = self._state.latest(frame.late_counters)
         if frame.late_counters:
             self._state.stage()
         frame.stats.setdefault("raster", {})["compute"] = {
