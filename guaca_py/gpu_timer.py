@@ -12,6 +12,25 @@ GL_TIMESTAMP = 0x8E28
 GL_QUERY_RESULT = 0x8866
 
 
+def _new_query(gl) -> int:
+    """A fresh GL query name."""
+    name = ctypes.c_uint(0)
+    gl.glGenQueries(1, ctypes.byref(name))
+    return name.value
+
+
+def _query_result(gl, name: int) -> int:
+    """The query's 64-bit result (waits for it)."""
+    out = ctypes.c_uint64(0)
+    gl.glGetQueryObjectui64v(name, GL_QUERY_RESULT, ctypes.byref(out))
+    return int(out.value)
+
+
+def _delete_query(gl, name: int) -> None:
+    """Delete one query name."""
+    gl.glDeleteQueries(1, ctypes.byref(ctypes.c_uint(name)))
+
+
 class _Query:
     """A query of `target` around a block (`with q: ...`), read with `result` (waits), freed with `release()`."""
 
@@ -23,9 +42,7 @@ class _Query:
         if self._gl is None:  # no raw entry points: moderngl's query (its name stays until exit)
             self._fallback = ctx.query(time=self.target == GL_TIME_ELAPSED, samples=self.target == GL_SAMPLES_PASSED)
             return
-        name = ctypes.c_uint(0)
-        self._gl.glGenQueries(1, ctypes.byref(name))
-        self.name = name.value
+        self.name = _new_query(self._gl)
 
     def __enter__(self):
         if self._fallback is not None:
@@ -44,15 +61,12 @@ class _Query:
         """The query's value (waits for the GPU to finish the block)."""
         if self._fallback is not None:
             return self._fallback.elapsed if self.target == GL_TIME_ELAPSED else self._fallback.samples
-        out = ctypes.c_uint64(0)
-        self._gl.glGetQueryObjectui64v(self.name, GL_QUERY_RESULT, ctypes.byref(out))
-        return int(out.value)
+        return _query_result(self._gl, self.name)
 
     def release(self) -> None:
         """Delete the query object (the context must be current)."""
         if self._gl is not None and self.name:
-            name = ctypes.c_uint(self.name)
-            self._gl.glDeleteQueries(1, ctypes.byref(name))
+            _delete_query(self._gl, self.name)
             self.name = 0
 
 
@@ -93,22 +107,14 @@ class Timestamps:
         """Record the GPU time when the commands issued so far have run, under `label`."""
         if self._gl is None:
             return
-        if not self._free:
-            name = ctypes.c_uint(0)
-            self._gl.glGenQueries(1, ctypes.byref(name))
-            self._free.append(name.value)
-        name = self._free.pop()
+        name = self._free.pop() if self._free else _new_query(self._gl)
         self._gl.glQueryCounter(name, GL_TIMESTAMP)
         self._marks.append((label, name))
 
     def spans_ms(self) -> dict[str, float]:
         """Milliseconds from each mark to the next, summed by the later mark's label; clears the marks."""
-        times = []
-        for label, name in self._marks:
-            out = ctypes.c_uint64(0)
-            self._gl.glGetQueryObjectui64v(name, GL_QUERY_RESULT, ctypes.byref(out))
-            times.append((label, int(out.value)))
-            self._free.append(name)
+        times = [(label, _query_result(self._gl, name)) for label, name in self._marks]
+        self._free += [name for _, name in self._marks]
         self._marks = []
         spans: dict[str, float] = {}
         for (_, t0), (label, t1) in zip(times, times[1:]):
@@ -119,5 +125,5 @@ class Timestamps:
         """Delete the query objects (the context must be current)."""
         if self._gl is not None:
             for name in self._free + [n for _, n in self._marks]:
-                self._gl.glDeleteQueries(1, ctypes.byref(ctypes.c_uint(name)))
+                _delete_query(self._gl, name)
         self._free, self._marks = [], []
