@@ -280,6 +280,7 @@ def acceptance_lines(out: dict) -> list[str]:
         "| scene | presort_lf_et ms | target (paper / 10) | over the target | slowest exact A-buffer / unsorted_blend |",
         "|---|---|---|---|---|",
     ]
+    exact_ids = one_pass_exact()
     for stem, rows in out.get("scenes", {}).items():
         timed = {k: r for k, r in rows.items() if isinstance(r, dict) and "total_ms" in r}
         et = next((r for k, r in timed.items() if k.startswith("presort_lf_et (")), None)
@@ -288,7 +289,7 @@ def acceptance_lines(out: dict) -> list[str]:
         cells = [stem, "—", f"{target:.2f}", "—", "—"]
         if et:
             cells[1], cells[3] = f"{et['total_ms']:.3f}", f"{et['total_ms'] / target:.1f}x"
-        exact = {k: r for k, r in timed.items() if k.split(" (")[0] in one_pass_exact()}
+        exact = {k: r for k, r in timed.items() if k.split(" (")[0] in exact_ids}
         if blend and exact:
             key, worst = max(exact.items(), key=lambda kv: kv[1]["total_ms"])
             cells[4] = f"{worst['total_ms'] / blend['total_ms']:.2f}x ({key})"
