@@ -44,21 +44,17 @@ class TransparencyMethod:
     supports_antialiasing: ClassVar[bool] = False
     antialiasing_refusal: ClassVar[str] = "its fragments carry no coverage mask"
     aa_samples: int = 1  # samples per pixel (antialiasing.samples), set by the renderer
-    # the order the compute rasterizer takes a draw's triangles in (raster/order.comp.j2): "depth"
-    # (front to back with early termination, back to front without), "mesh" (index order),
-    # "tile" (screen tiles, by depth within each), or None: the rule of raster_order()
-    compute_order: ClassVar[str | None] = None
     # why `raster: auto` should take the compute rasterizer for draws of every triangle size (set
     # by a method whose fragment-shader path would be slow with the choices it made), or None
     auto_compute_reason: str | None = None
 
     def raster_order(self) -> str:
-        """The compute rasterizer's triangle order for this method: its `raster_order` setting, or its own."""
+        """The compute rasterizer's triangle order: the `raster_order` setting, or for `auto` the measured rule below."""
         order = self.settings.get("raster_order", "auto")
         if order != "auto":
             return order
-        if self.compute_order:
-            return self.compute_order
+        # Orders (raster/order.comp.j2): "depth" (front to back with early termination, back to
+        # front without), "mesh" (index order), "tile" (screen tiles, by depth within each).
         # On the H100 (benchmarks/results/h100/raster_order/orders.md), depth order let early
         # termination cull most: presort_cs_et hairball_v2 25.2 ms against 48.8 in tile order.
         # Without it, tile order keeps each pixel's nodes and its neighbours' in one short run of
