@@ -23,9 +23,8 @@ SETTINGS = {
         choices=SAMPLE_COUNTS,
     ),
 }
-# Every node packs its mask into the free upper half of payload word 6 (common/payload_pack):
+# Every node packs its mask into the free upper 16 bits of payload word 6 (common/payload_pack):
 # the node keeps its size, so memory per fragment is unchanged by antialiasing.
-COVERAGE_BITS = 16
 SUGGESTION = "presort_lf_et (or another one-pass A-buffer method: presort_lf, presort_lf_merge2_et, " + (
     "presort_cs, presort_cs_et, post_sort, post_merge16)"
 )

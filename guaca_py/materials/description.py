@@ -22,8 +22,6 @@ _LITERAL_ONE = re.compile(r"^\(?\s*1(\.0*)?f?\s*\)?$")
 _ALPHA_UNSURE = re.compile(r"[(,]\s*gua_alpha\s*[,)]|\+\+\s*gua_alpha|gua_alpha\s*(\+\+|--)|--\s*gua_alpha")
 # the preprocessor can write gua_alpha under another name
 _PREPROCESSOR = re.compile(r"^\s*#\s*(define|if|ifdef|ifndef|include)\b", re.M)
-#: built-in texture names usable as sampler defaults
-BUILTIN_TEXTURES = ("white", "black", "normal")
 
 
 @dataclass
