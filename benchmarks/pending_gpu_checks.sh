@@ -10,6 +10,8 @@
 #    compute rasterizer's time per stage (GUACA_RASTER_STAGES=1) on the dragons and hairball_v2 (~40 s),
 #    then the dragons' AA cost in each triangle order (~40 s)
 # b: hairball_v2's temporal stability (~5.5 min), the one scene not yet run on the GPU
+# c: the suite (after the 64-bit walk took plain loads), that walk against the atomic one (GUACA_ATOMIC_WALK=1)
+#    by aa_cost on four scenes at 1 and 4 samples (~2.5 min), then benchmarks/frame_gaps.py (~2 min)
 # order: the suite, then the compute rasterizer's triangle orders (depth, mesh, tile) per method and
 #    scene (benchmarks/results/h100/raster_order/orders.md)
 set -uo pipefail
@@ -42,6 +44,19 @@ elif [[ $part == b ]]; then
   PART=stability PART_S=340 SCENES_SUBSET="hairball_v2" bash benchmarks/aa_gpu_run.sh "$work/aa" \
     > "$work/aa_stability.txt" 2>&1
   tail -8 "$work/aa_stability.txt"
+elif [[ $part == c ]]; then
+  timeout 200 python3 -m pytest -q -p no:cacheprovider tests > "$work/pytest_gpu.txt" 2>&1
+  tail -3 "$work/pytest_gpu.txt"
+  pack
+  # the 64-bit list walk: a plain load per node passed (default) against an atomicMax per node
+  for walk in 0 1; do
+    GUACA_ATOMIC_WALK=$walk timeout 100 python3 benchmarks/aa_cost.py "$work/walk_atomic$walk" --scenes .scenes \
+      --scene-names dragons sponza_dabrovic_v1 hairball_v1 hairball_v2 --samples 1 4 2>&1 | tail -2
+    pack
+  done
+  # where the frame loop's wall time beyond the GPU's goes: gaps between frames, per pass GPU span / CPU
+  timeout 200 python3 benchmarks/frame_gaps.py "$work/frame_gaps" \
+    --methods presort_lf_et presort_cs unsorted_blend multilayer_depth_peeling 2>&1 | tail -25
 elif [[ $part == order ]]; then
   timeout 200 python3 -m pytest -q -p no:cacheprovider tests > "$work/pytest_gpu.txt" 2>&1
   tail -3 "$work/pytest_gpu.txt"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 
 from ..gpu_counters import CounterBlock
 from ..limits import pool_node_limit
@@ -232,6 +233,9 @@ class PreSortLF(TransparencyMethod):
             "subgroup_counts": ballot,
             "subgroup_alloc": ballot and self.path == "64bit",
             "aa_samples": self.aa_samples,
+            # the 64-bit walk spends an atomicMax per node it passes (GUACA_ATOMIC_WALK=1, to measure
+            # against the default: a plain load per node passed, an atomic only where it may insert)
+            "atomic_walk": os.environ.get("GUACA_ATOMIC_WALK", "") not in ("", "0"),
         }
 
     def extensions(self) -> str:
