@@ -12,6 +12,8 @@
 # b: hairball_v2's temporal stability (~5.5 min), the one scene not yet run on the GPU
 # c: the suite (after the 64-bit walk took plain loads), that walk against the atomic one (GUACA_ATOMIC_WALK=1)
 #    by aa_cost on four scenes at 1 and 4 samples (~2.5 min), then benchmarks/frame_gaps.py (~2 min)
+# d: Table 1 with raster: auto (~2.5 min; loop GPU time and idle time from timestamps), then the hairballs'
+#    accuracy with FLIP (~4.5 min)
 # order: the suite, then the compute rasterizer's triangle orders (depth, mesh, tile) per method and
 #    scene (benchmarks/results/h100/raster_order/orders.md)
 set -uo pipefail
@@ -57,6 +59,15 @@ elif [[ $part == c ]]; then
   # where the frame loop's wall time beyond the GPU's goes: gaps between frames, per pass GPU span / CPU
   timeout 200 python3 benchmarks/frame_gaps.py "$work/frame_gaps" \
     --methods presort_lf_et presort_cs unsorted_blend multilayer_depth_peeling 2>&1 | tail -25
+elif [[ $part == d ]]; then
+  timeout 240 python3 benchmarks/paper_table.py "$work/paper_table" --raster auto 2>&1 | grep -v "^\s*$" \
+    > "$work/paper_table_log.txt"
+  tail -12 "$work/paper_table_log.txt"
+  pack
+  # the hairballs' speed against error with FLIP (the first H100 tables were made without flip-evaluator)
+  PART=accuracy PART_S=280 SCENES_SUBSET="hairball_v1 hairball_v2" bash benchmarks/aa_gpu_run.sh "$work/aa" \
+    > "$work/aa_accuracy.txt" 2>&1
+  tail -8 "$work/aa_accuracy.txt"
 elif [[ $part == order ]]; then
   timeout 200 python3 -m pytest -q -p no:cacheprovider tests > "$work/pytest_gpu.txt" 2>&1
   tail -3 "$work/pytest_gpu.txt"
