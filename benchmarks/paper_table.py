@@ -466,11 +466,14 @@ def main() -> None:
         help="rasterizers of transparent draws; compute/ORDER also sets transparency.raster_order",
     )
     ap.add_argument("--skip-stacks", action="store_true")
+    ap.add_argument("--loop-frames", type=int, default=LOOP_FRAMES, help="frames of the application loop")
     ap.add_argument(
         "--empty-only", action="store_true", help="only the empty frame (with and without pass fusion); JSON only"
     )
     ap.add_argument("--replot", nargs="*", metavar="JSON", help="no rendering: merge these result files into OUTDIR")
     args = ap.parse_args()
+    global LOOP_FRAMES
+    LOOP_FRAMES = args.loop_frames  # read by time_once() and the tables
     outdir = Path(args.outdir)
     outdir.mkdir(parents=True, exist_ok=True)
     if args.replot:

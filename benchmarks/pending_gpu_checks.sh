@@ -14,6 +14,7 @@
 #    by aa_cost on four scenes at 1 and 4 samples (~2.5 min), then benchmarks/frame_gaps.py (~2 min)
 # d: Table 1 with raster: auto (~2.5 min; loop GPU time and idle time from timestamps), then the hairballs'
 #    accuracy with FLIP (~4.5 min)
+# e: Table 1's loop rows of the dragons and hairball_v2 over 24 and 96 frames (~2 min)
 # order: the suite, then the compute rasterizer's triangle orders (depth, mesh, tile) per method and
 #    scene (benchmarks/results/h100/raster_order/orders.md)
 set -uo pipefail
@@ -68,6 +69,14 @@ elif [[ $part == d ]]; then
   PART=accuracy PART_S=280 SCENES_SUBSET="hairball_v1 hairball_v2" bash benchmarks/aa_gpu_run.sh "$work/aa" \
     > "$work/aa_accuracy.txt" 2>&1
   tail -8 "$work/aa_accuracy.txt"
+elif [[ $part == e ]]; then
+  # is the loop wall's excess over the loop's GPU time on hairball_v2's non-ET rows (up to +1.06 ms
+  # over 24 frames) paid once per loop or per frame? The same rows over 24 and 96 frames
+  for n in 24 96; do
+    timeout 200 python3 benchmarks/paper_table.py "$work/loop$n" --raster auto --skip-stacks --loop-frames $n \
+      --only dragons hairball_v2 --methods presort_lf_et presort_lf post_sort presort_cs_et 2>&1 | tail -9
+    pack
+  done
 elif [[ $part == order ]]; then
   timeout 200 python3 -m pytest -q -p no:cacheprovider tests > "$work/pytest_gpu.txt" 2>&1
   tail -3 "$work/pytest_gpu.txt"
