@@ -451,6 +451,7 @@ def replot(files: list[Path], outdir: Path) -> None:
 
 
 def main() -> None:
+    global LOOP_FRAMES
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("outdir")
     ap.add_argument("--scenes", default=str(ROOT / ".scenes"))
@@ -472,7 +473,6 @@ def main() -> None:
     )
     ap.add_argument("--replot", nargs="*", metavar="JSON", help="no rendering: merge these result files into OUTDIR")
     args = ap.parse_args()
-    global LOOP_FRAMES
     LOOP_FRAMES = args.loop_frames  # read by time_once() and the tables
     outdir = Path(args.outdir)
     outdir.mkdir(parents=True, exist_ok=True)
