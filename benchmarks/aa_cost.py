@@ -97,12 +97,22 @@ def markdown(rows: list[dict], command: str) -> str:
     stages = [(r, (r.get("raster") or {}).get("compute", {}).get("stage_ms")) for r in rows]
     stages = [(r, st) for r, st in stages if st]
     if stages:
-        names = ("vertex", "order", "setup", "bin", "fine")
+        names = ("between_draws", "vertex", "order", "setup", "bin", "fine")
         out += ["", "## Compute rasterizer stages (GPU ms, last frame of each row)", ""]
-        out += ["| scene | path | samples | " + " | ".join(names) + " |", "|---|---|---|" + "---|" * len(names)]
+        out += [
+            "`between_draws`: from the rasterizer's set-up to the first draw and from each draw's last stage to "
+            "the next draw's first; `outside`: the rest of the geometry pass (its clears and G-buffer, "
+            "before the rasterizer starts).",
+            "",
+        ]
+        out += [
+            "| scene | path | samples | " + " | ".join(names) + " | outside |",
+            "|---|---|---|" + "---|" * (len(names) + 1),
+        ]
         for r, st in stages:
             cells = " | ".join(f"{st.get(n, 0.0):.3f}" for n in names)
-            out.append(f"| {r['scene']} | {r['path']} | {r['samples']} | {cells} |")
+            outside = r["passes_ms"].get("geometry", 0.0) - sum(st.values())
+            out.append(f"| {r['scene']} | {r['path']} | {r['samples']} | {cells} | {outside:.3f} |")
     return "\n".join(out) + "\n"
 
 

@@ -15,6 +15,7 @@
 # d: Table 1 with raster: auto (~2.5 min; loop GPU time and idle time from timestamps), then the hairballs'
 #    accuracy with FLIP (~4.5 min)
 # e: Table 1's loop rows of the dragons and hairball_v2 over 24 and 96 frames (~2 min)
+# f: the compute rasterizer's stages, the time between draws and outside it (~1 min)
 # order: the suite, then the compute rasterizer's triangle orders (depth, mesh, tile) per method and
 #    scene (benchmarks/results/h100/raster_order/orders.md)
 set -uo pipefail
@@ -77,6 +78,11 @@ elif [[ $part == e ]]; then
       --only dragons hairball_v2 --methods presort_lf_et presort_lf post_sort presort_cs_et 2>&1 | tail -9
     pack
   done
+elif [[ $part == f ]]; then
+  # the compute rasterizer's stages with the time between draws and outside the rasterizer (dragons)
+  GUACA_RASTER_STAGES=1 timeout 120 python3 benchmarks/aa_cost.py "$work/raster_stages" --scenes .scenes \
+    --scene-names dragons sponza_dabrovic_v1 hairball_v2 --samples 1 4 2>&1 | tail -3
+  tail -12 "$work/raster_stages/aa_cost.md"
 elif [[ $part == order ]]; then
   timeout 200 python3 -m pytest -q -p no:cacheprovider tests > "$work/pytest_gpu.txt" 2>&1
   tail -3 "$work/pytest_gpu.txt"

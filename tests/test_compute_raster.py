@@ -682,6 +682,6 @@ def test_stage_profile_reports_each_stage(renderer_factory, monkeypatch):
     r = renderer_factory("exact", method="presort_lf", method_overrides={"raster": "compute"})
     for _ in range(2):  # marks do not pile up from frame to frame
         stages = r.render(scene, 48, 48).stats["raster"]["compute"]["stage_ms"]
-        assert set(stages) == {"vertex", "order", "setup", "bin", "fine"}, stages
+        assert set(stages) == {"between_draws", "vertex", "order", "setup", "bin", "fine"}, stages
         assert all(v >= 0.0 for v in stages.values())
     assert len(r.raster.compute._stages._marks) == 0

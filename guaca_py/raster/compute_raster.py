@@ -255,6 +255,7 @@ class ComputeRasterizer:
         self._state.reset()
         ctx.memory_barrier()
         self._triangles = 0
+        self._mark("begin")  # stage profiling: what follows until the first draw's vertex stage is its set-up
 
     def _require_vertices(self, vertices: int) -> None:
         """Transformed vertices and the triangle order have no overflow path: they must fit the storage rule."""
@@ -335,7 +336,7 @@ class ComputeRasterizer:
             d.write_transform(vert)
             vert["gua_vertex_count"] = len(d.mesh.positions)
             r._set_material_uniforms(vert, d)
-            self._mark("other")
+            self._mark("between_draws")  # from the last stage (or the set-up) to this draw's start
             vert.run(*_grid(len(d.mesh.positions)))
             ctx.memory_barrier()
             self._mark("vertex")
@@ -403,7 +404,6 @@ class ComputeRasterizer:
         }
         if self._stages is not None:  # stage profiling: this frame's spans (waits for the GPU)
             spans = self._stages.spans_ms()
-            spans.pop("other", None)  # from one draw's end to the next draw's start: not a stage
             frame.stats["raster"]["compute"]["stage_ms"] = {k: round(v, 4) for k, v in spans.items()}
         frame.stats.setdefault("memory", {}).update(self.memory(c["large_peak"], c["jobs_peak"]))
         dropped = c["large_dropped"] or c["jobs_dropped"]
