@@ -339,6 +339,7 @@ class Renderer:
                 else:
                     p.execute(frame)
                     timer, kind = (lambda: 0.0), "off"
+                p.collect(frame)  # after the timer: its reads may wait for the GPU
                 if not frame.rerender:
                     break
                 frame.rerender = False

@@ -51,6 +51,13 @@ class Pass:
         """Run the pass for one frame."""
         raise NotImplementedError
 
+    def collect(self, frame: FrameState) -> None:
+        """After execute() and outside the pass's timer: read what the pass counted (may set frame.rerender).
+
+        A read can wait for the GPU; inside the timer, the CPU work after that wait would count as
+        GPU time (the GPU idles until the pass's end query arrives).
+        """
+
     def release(self) -> None:
         """Free GPU resources held between frames."""
 

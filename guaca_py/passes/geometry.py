@@ -69,11 +69,16 @@ class GeometryPass(Pass):
             method.prepare(frame)
             method.render_transparent(frame)
             self.ctx.memory_barrier()
-            frame.rerender = method.finish(frame)
-            frame.rerender = self.renderer.raster.finish(frame) or frame.rerender
         elif not has_transparency:
             frame.stats["fragments"] = {"stored": 0}
         self.ctx.depth_func = "<"
+
+    def collect(self, frame) -> None:
+        """The method's and the compute rasterizer's counters (an overflow asks for the frame again)."""
+        method = self.renderer.method
+        if frame.transparent_draws and not method.geometry_in_composite:
+            frame.rerender = method.finish(frame)
+            frame.rerender = self.renderer.raster.finish(frame) or frame.rerender
 
     def release(self) -> None:
         """Free the G-buffer."""
