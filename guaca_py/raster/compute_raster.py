@@ -67,7 +67,8 @@ MEDIUM_AREA = 1024  # larger boxes up to this many pixels by one 64-thread workg
 DEPTH_UNIT = 7  # texture unit of the G-buffer depth (units 8+ hold material textures)
 VERTEX_RECORD_BYTES = 48  # clip position, world position + u, normal + v
 MAX_REGROW = 2  # re-renders one frame may take to grow the queue or the job list
-BUCKETS = 16384  # buckets of the triangle order (a multiple of 64: order.comp.j2's scan)
+BUCKETS = 16384  # buckets of the triangle order (a multiple of SCAN_LANES: order_scan.comp.j2)
+SCAN_LANES = 1024  # invocations of the one-workgroup prefix sum over the buckets (the GL minimum limit)
 ORDER_TILE_BITS = 4  # tile order: 16 x 16 screen tiles of 64 depth buckets each
 _GROUP = 64  # threads per workgroup of the vertex and setup stages
 _MAX_GROUPS_X = 65535  # the GL minimum of GL_MAX_COMPUTE_WORK_GROUP_COUNT; grids wrap into y
@@ -142,6 +143,7 @@ class ComputeRasterizer:
             "raster_depth_unit": DEPTH_UNIT,
             "raster_buckets": BUCKETS,
             "raster_order_tile_bits": ORDER_TILE_BITS,
+            "raster_scan_lanes": SCAN_LANES,
         }
 
     def _compute_material(self, mat):
@@ -276,9 +278,9 @@ class ComputeRasterizer:
         w = corners @ (frame.projection @ frame.view @ draw.world)[3]
         return float(max(w.min(), 0.0)), float(max(w.max(), 0.0))
 
-    def _order_pass(self, frame, draw, order_kernel, depth_range: tuple[float, float]) -> None:
+    def _order_pass(self, frame, draw, order_kernels, depth_range: tuple[float, float]) -> None:
         """Bucket-sort the draw's triangles in the frustum by view depth, index or screen tile (order.comp.j2)."""
-        ctx = self.ctx
+        ctx, (order_kernel, scan) = self.ctx, order_kernels
         self._fit_order(draw.mesh.triangle_count)
         self._buckets.bind_to_storage_buffer(14)
         self._order.bind_to_storage_buffer(15)
@@ -289,9 +291,13 @@ class ComputeRasterizer:
         order = self.renderer.method.raster_order()
         order_kernel["gua_mesh_order"] = order == "mesh"
         order_kernel["gua_tile_order"] = order == "tile"
-        for mode, items in ((0, BUCKETS), (1, draw.mesh.triangle_count), (2, _GROUP), (3, draw.mesh.triangle_count)):
-            order_kernel["gua_order_mode"] = mode
-            order_kernel.run(*_grid(items))
+        steps = ((0, BUCKETS), (1, draw.mesh.triangle_count), (None, 1), (3, draw.mesh.triangle_count))
+        for mode, items in steps:  # clear, count, prefix sum (with the setup stage's dispatch), scatter
+            if mode is None:
+                scan.run(1)
+            else:
+                order_kernel["gua_order_mode"] = mode
+                order_kernel.run(*_grid(items))
             ctx.memory_barrier()
 
     @staticmethod
@@ -311,7 +317,8 @@ class ComputeRasterizer:
         frame.resources["gbuffer"]["depth"].use(location=DEPTH_UNIT)
         any_opaque = any(not d.transparent for d in frame.draws)
         span = sample_span(r.sample_positions)
-        args, order_kernel = self._kernel("raster/args.comp.j2"), self._kernel("raster/order.comp.j2")
+        args = self._kernel("raster/args.comp.j2")
+        order_kernels = self._kernel("raster/order.comp.j2"), self._kernel("raster/order_scan.comp.j2")
         # draws run one after the other: take them in depth order too (see _order_pass)
         ranges = {d.index: self._depth_range(frame, d) for d in draws}
         if getattr(r.method, "early_termination", False):
@@ -340,7 +347,7 @@ class ComputeRasterizer:
             vert.run(*_grid(len(d.mesh.positions)))
             ctx.memory_barrier()
             self._mark("vertex")
-            self._order_pass(frame, d, order_kernel, ranges[d.index])
+            self._order_pass(frame, d, order_kernels, ranges[d.index])
             self._mark("order")
             for prog in (setup, binner, fine):
                 frame.set_frame_uniforms(prog)
