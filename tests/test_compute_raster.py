@@ -461,7 +461,9 @@ def test_command_line_set_and_info(capsys, tmp_path):
 
 
 @pytest.mark.skipif(shutil.which("glslangValidator") is None, reason="glslangValidator (glslang-tools) not installed")
-@pytest.mark.parametrize(("method", "samples"), [("presort_lf_et", 1), ("presort_lf_et", 4), ("presort_lf_merge2_et", 1)])
+@pytest.mark.parametrize(
+    ("method", "samples"), [("presort_lf_et", 1), ("presort_lf_et", 4), ("presort_lf_merge2_et", 1)]
+)
 def test_gpu_variants_pass_the_reference_compiler(renderer_factory, tmp_path, method, samples):
     # the NVIDIA variants (64-bit insertion with its walk hint, subgroup ballots) of every kernel,
     # with every built-in material made transparent, through Khronos' reference compiler (this
@@ -499,7 +501,9 @@ def test_gpu_variants_pass_the_reference_compiler(renderer_factory, tmp_path, me
         del cr.renderer.shaders.program
         cr._program_sets.clear()  # the captured stages are no programs
     assert all(d.transparent for d in draws) and len(stages) == 4 * len(mats)
-    stages += [(t, cr._raster_vars()) for t in ("raster/args.comp.j2", "raster/order.comp.j2", "raster/order_scan.comp.j2")]
+    stages += [
+        (t, cr._raster_vars()) for t in ("raster/args.comp.j2", "raster/order.comp.j2", "raster/order_scan.comp.j2")
+    ]
     for i, (template, variables) in enumerate(stages):
         path = tmp_path / f"k{i}.comp"
         path.write_text(r.shaders.render(template, **variables))
