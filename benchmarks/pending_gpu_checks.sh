@@ -16,9 +16,6 @@
 #    accuracy with FLIP (~4.5 min)
 # e: Table 1's loop rows of the dragons and hairball_v2 over 24 and 96 frames (~2 min)
 # f: the compute rasterizer's stages, the time between draws and outside it (~1 min)
-# g: the suite (after the walk hint and the one-workgroup scan of the order stage), then the compute
-#    rasterizer's stages with the walk hint and without it (GUACA_NO_WALK_HINT=1) on four scenes at
-#    1 and 4 samples (~1.5 min)
 # order: the suite, then the compute rasterizer's triangle orders (depth, mesh, tile) per method and
 #    scene (benchmarks/results/h100/raster_order/orders.md)
 set -uo pipefail
@@ -86,16 +83,6 @@ elif [[ $part == f ]]; then
   GUACA_RASTER_STAGES=1 timeout 120 python3 benchmarks/aa_cost.py "$work/raster_stages" --scenes .scenes \
     --scene-names dragons sponza_dabrovic_v1 hairball_v2 --samples 1 4 2>&1 | tail -3
   tail -12 "$work/raster_stages/aa_cost.md"
-elif [[ $part == g ]]; then
-  timeout 220 python3 -m pytest -q -p no:cacheprovider tests > "$work/pytest_gpu.txt" 2>&1
-  tail -3 "$work/pytest_gpu.txt"
-  pack
-  for nohint in 0 1; do
-    GUACA_NO_WALK_HINT=$nohint GUACA_RASTER_STAGES=1 timeout 150 python3 benchmarks/aa_cost.py "$work/stages_nohint$nohint" \
-      --scenes .scenes --scene-names dragons sponza_dabrovic_v1 hairball_v1 hairball_v2 --samples 1 4 2>&1 | tail -2
-    tail -20 "$work/stages_nohint$nohint/aa_cost.md"
-    pack
-  done
 elif [[ $part == order ]]; then
   timeout 200 python3 -m pytest -q -p no:cacheprovider tests > "$work/pytest_gpu.txt" 2>&1
   tail -3 "$work/pytest_gpu.txt"

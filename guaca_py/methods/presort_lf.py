@@ -33,8 +33,7 @@ class PreSortLF(TransparencyMethod):
     compute_raster = True  # insertion is gua_submit_at(pix, depth, tie): callable from compute kernels
     supports_antialiasing = True  # nodes carry the coverage mask; the composite resolves per sample
     counters: tuple[str, ...] = COUNTERS  # counter words of the counter buffer, in layout order
-    extra_slots = 0  # per-pixel link words after the node links (second list heads, locks, walk hints)
-    walk_hint = False  # a per-pixel hint where tail insertions start (early termination, 64-bit links)
+    extra_slots = 0  # per-pixel link words after the node links (second list heads, locks)
     SETTINGS = {
         "budget_mb": Setting(
             (str, int, float), "auto", "node pool size in MB, or 'auto' (grow to the need)", check=_budget
@@ -52,11 +51,6 @@ class PreSortLF(TransparencyMethod):
         self.path = caps.insertion_path
         self.link_bytes = 8 if self.path == "64bit" else 4
         self.node_bytes = NODE_PAYLOAD_BYTES + self.link_bytes
-        # the hint packs a node and the opacity in front of it into one 64-bit link word
-        # (abuffer/lockfree_list.glsl.j2); GUACA_NO_WALK_HINT=1 leaves it out, to measure against
-        self.hint = self.walk_hint and self.path == "64bit" and os.environ.get("GUACA_NO_WALK_HINT", "") in ("", "0")
-        if self.hint:
-            self.extra_slots = 1
         self._links = self._nodes = self._counters = self._cull = None
         self._pixels = 0
         self.capacity = 0  # nodes in the pool, node 0 included
@@ -239,7 +233,6 @@ class PreSortLF(TransparencyMethod):
             "subgroup_counts": ballot,
             "subgroup_alloc": ballot and self.path == "64bit",
             "aa_samples": self.aa_samples,
-            "walk_hint": self.hint,
             # the 64-bit walk spends an atomicMax per node it passes (GUACA_ATOMIC_WALK=1, to measure
             # against the default: a plain load per node passed, an atomic only where it may insert)
             "atomic_walk": os.environ.get("GUACA_ATOMIC_WALK", "") not in ("", "0"),
@@ -274,7 +267,6 @@ class PreSortLF(TransparencyMethod):
             "abuffer_pool": self.capacity * self.node_bytes,
             "abuffer_pool_used": (used + 1) * self.node_bytes,
             "abuffer_cull_depth": self._pixels * 4,
-            **({"abuffer_walk_hints": self._pixels * self.link_bytes} if self.hint else {}),
             "abuffer_node_bytes": self.node_bytes,  # coverage masks ride in free payload bits: same size
         }
 
@@ -291,5 +283,4 @@ class PreSortLFET(PreSortLF):
 
     id = "presort_lf_et"
     early_termination = True
-    walk_hint = True
     summary = "sorted lock-free insertion with early termination (guacamole's default)"
