@@ -23,7 +23,9 @@ from reference import (
     unlit,
 )
 
+from guaca_py.antialiasing import with_samples
 from guaca_py.errors import ConfigError, UnsupportedMethodError
+from guaca_py.pipeline.config import load_pipeline
 from guaca_py.scene.graph import Light, MaterialInstance, MeshData, Node, Transform
 
 SIZE = 96
@@ -145,6 +147,38 @@ def test_shared_edges_cover_every_pixel_once(renderer_factory, jitter):
     ref, mask, layer_count = _REFS.of("plain3", simple_scene(plain), w, w)
     assert layer_count.min() == 3
     assert compare(frame.image, ref, mask)["max_abs_255"] <= 2.0
+
+
+@pytest.mark.parametrize("samples", [1, 4])
+def test_order_stage_drops_only_triangles_that_cover_no_sample(renderer_factory, samples):
+    # a plane just larger than the view cut into ~0.1 px² triangles: with one sample most hold no
+    # pixel centre in their snapped bounds and the order stage leaves them out, yet every sample is
+    # still covered exactly once (each pixel stores one fragment; with 4 samples, whose points
+    # spread over the pixel, few are left out, and the pixel's masks add up to every sample once)
+    n, w = 110, 48
+    node = Node("t", Transform(), tessellated_plane(n, 5.0, 0.2, 3), unlit((0.9, 0.4, 0.2), 0.5))
+    pipeline = with_samples(load_pipeline("exact"), samples)
+    r = renderer_factory(pipeline, method="presort_lf", method_overrides={"raster": "compute"})
+    if r.samples != samples:
+        pytest.skip(f"the device renders {r.samples} samples for {samples}")
+    frame = r.render(simple_scene([node]), w, w)
+    stats = frame.stats["raster"]["compute"]
+    assert stats["triangles"] == 2 * n * n
+    if samples == 1:
+        assert stats["visible_triangles"] < n * n // 2, stats  # fewer than a quarter of the triangles
+        assert frame.stats["fragments"]["stored"] == w * w
+        return
+    # each pixel's fragments cover its samples once: their masks are disjoint and fill the pixel
+    m = r.method
+    links = np.frombuffer(m._links.read(), np.uint64 if m.link_bytes == 8 else np.uint32)
+    words = np.frombuffer(m._nodes.read(), np.uint32).reshape(-1, 8)
+    for pixel in range(w * w):
+        node, union, total = int(links[pixel]) & 0xFFFFFFFF, 0, 0
+        while node:
+            mask = int(words[node, 6]) >> 16
+            union, total = union | mask, total + mask
+            node = int(links[m._pixels + node]) & 0xFFFFFFFF
+        assert union == total == (1 << samples) - 1, (pixel, union, total)
 
 
 def test_triangle_crossing_the_near_plane(renderer_factory):
@@ -648,7 +682,8 @@ def test_tile_order_runs_screen_tiles_one_after_another(renderer_factory, method
         s = (5.0 - z) * np.tan(np.radians(25.0))  # NDC to world at this depth (camera at z = 5)
         for y in places:
             for x in places:
-                q = np.float32([[-0.01, -0.01, 0], [0.01, -0.01, 0], [0.01, 0.01, 0], [-0.01, 0.01, 0]]) * s
+                # 2.56 px wide: each covers pixel centres (the order stage drops triangles that cover none)
+                q = np.float32([[-0.04, -0.04, 0], [0.04, -0.04, 0], [0.04, 0.04, 0], [-0.04, 0.04, 0]]) * s
                 nodes_pos.append(q + np.float32([x * s, y * s, z]))
                 tris.append((zi, x, y, z))
     pos = np.concatenate(nodes_pos)

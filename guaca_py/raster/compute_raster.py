@@ -278,7 +278,7 @@ class ComputeRasterizer:
         w = corners @ (frame.projection @ frame.view @ draw.world)[3]
         return float(max(w.min(), 0.0)), float(max(w.max(), 0.0))
 
-    def _order_pass(self, frame, draw, order_kernels, depth_range: tuple[float, float]) -> None:
+    def _order_pass(self, frame, draw, order_kernels, depth_range: tuple[float, float], span) -> None:
         """Bucket-sort the draw's triangles in the frustum by view depth, index or screen tile (order.comp.j2)."""
         ctx, (order_kernel, scan) = self.ctx, order_kernels
         self._fit_order(draw.mesh.triangle_count)
@@ -291,6 +291,8 @@ class ComputeRasterizer:
         order = self.renderer.method.raster_order()
         order_kernel["gua_mesh_order"] = order == "mesh"
         order_kernel["gua_tile_order"] = order == "tile"
+        order_kernel["gua_resolution"] = (frame.width, frame.height)
+        order_kernel["gua_sample_span"] = span
         steps = ((0, BUCKETS), (1, draw.mesh.triangle_count), (None, 1), (3, draw.mesh.triangle_count))
         for mode, items in steps:  # clear, count, prefix sum (with the setup stage's dispatch), scatter
             if mode is None:
@@ -347,7 +349,7 @@ class ComputeRasterizer:
             vert.run(*_grid(len(d.mesh.positions)))
             ctx.memory_barrier()
             self._mark("vertex")
-            self._order_pass(frame, d, order_kernels, ranges[d.index])
+            self._order_pass(frame, d, order_kernels, ranges[d.index], span)
             self._mark("order")
             for prog in (setup, binner, fine):
                 frame.set_frame_uniforms(prog)
