@@ -26,7 +26,7 @@ from .pipeline.settings import resolve_settings
 from .present import Presenter
 from .raster import RasterRouter
 from .scene.graph import Scene
-from .shaders import ShaderLibrary, SourceMap
+from .shaders import ShaderLibrary, SourceMap, uniform_names
 
 _FIRST_RESOURCES = {"draw_list", "lights"}
 _TEXTURE_UNIT_BASE = 8  # units below are used by the passes' own inputs
@@ -216,7 +216,7 @@ class Renderer:
     def _set_material_uniforms(self, prog, draw) -> None:
         unit = _TEXTURE_UNIT_BASE
         for name, spec in draw.material.uniforms.items():
-            if name not in prog:
+            if name not in uniform_names(prog):
                 continue
             value = draw.values[name]
             if spec.type == "sampler2D":
@@ -240,13 +240,13 @@ class Renderer:
             if switched:
                 frame.set_frame_uniforms(prog)
                 for k, v in (uniforms or {}).items():
-                    if k in prog:
+                    if k in uniform_names(prog):
                         prog[k] = v
                 if per_program is not None:
                     per_program(prog)
                 last = prog
             d.write_transform(prog)
-            if "gua_draw_index" in prog:
+            if "gua_draw_index" in uniform_names(prog):
                 prog["gua_draw_index"] = d.index
             if switched or d.values is not last_values:  # the same instance as the draw before is all set
                 self._set_material_uniforms(prog, d)

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from reference import layered_quads_scene
 
-from guaca_py.gpu_counters import CounterBlock, StagedReader, UploadBuffer
+from guaca_py.gpu_counters import CounterBlock, FencedCopies, StagedReader, UploadBuffer
+from guaca_py.host_state import raw_functions_or_none
 
 SIZE = 64
 
@@ -35,6 +36,32 @@ def test_counter_block_resets_and_reads(gl_context, monkeypatch, direct):
     finally:
         block.release()
         add.release()
+
+
+def test_fenced_copies_give_the_newest_finished_copy(gl_context):
+    # a frame loop's late counters: copies queue behind a fence each; the newest finished one is
+    # read and the older ones dropped; with every slot waiting, a new copy drops the oldest
+    gl = raw_functions_or_none()
+    if gl is None:
+        pytest.skip("no raw GL entry points")
+    buf = gl_context.buffer(reserve=8)
+    copies = FencedCopies(gl, 8, slots=2)
+    try:
+        assert copies.newest() is None
+        for v in (1, 2, 3):
+            buf.write(np.array([v, 10 * v], dtype=np.uint32).tobytes())
+            copies.copy(buf, tag=v)
+        gl_context.finish()
+        data, tag = copies.newest()
+        assert tag == 3 and np.frombuffer(data, dtype=np.uint32).tolist() == [3, 30]
+        assert copies.newest() is None  # the older copy went with it
+        buf.write(np.array([4, 40], dtype=np.uint32).tobytes())
+        copies.copy(buf, tag=4)  # not waited for: newest() waits for it, the only one queued
+        data, tag = copies.newest()
+        assert tag == 4 and np.frombuffer(data, dtype=np.uint32).tolist() == [4, 40]
+    finally:
+        copies.release()
+        buf.release()
 
 
 def test_upload_and_staged_read_round_trip(gl_context):

@@ -16,6 +16,7 @@ import numpy as np
 from ..gpu_counters import CounterBlock, StagedReader
 from ..pipeline.settings import Setting, non_negative, positive
 from ..prefix_sum import GpuFill, PrefixSum, dispatch_grid
+from ..shaders import uniform_names
 from .base import TransparencyMethod
 from .presort_lf import _budget
 
@@ -150,7 +151,7 @@ class _CountedStorage(TransparencyMethod):
         """The composite reads the same storage."""
         self.phase = "resolve"
         self._bind()
-        if "gua_cs_capacity" in program:
+        if "gua_cs_capacity" in uniform_names(program):
             program["gua_cs_capacity"] = self._capacity_uniform()
 
     def _capacity_uniform(self) -> int:

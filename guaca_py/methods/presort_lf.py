@@ -8,6 +8,7 @@ import os
 from ..gpu_counters import CounterBlock
 from ..limits import pool_node_limit
 from ..pipeline.settings import Setting, non_negative, positive
+from ..shaders import uniform_names
 from .base import TransparencyMethod
 
 NODE_PAYLOAD_BYTES = 32  # depth + 7 payload words, see abuffer/layout.glsl.j2
@@ -250,7 +251,7 @@ class PreSortLF(TransparencyMethod):
             ("gua_pixel_count", frame.pixel_count),
             ("gua_ab_threshold", self.threshold()),
         ):
-            if name in program:
+            if name in uniform_names(program):
                 program[name] = value
 
     def composite_threshold(self) -> float:

@@ -10,6 +10,7 @@ import numpy as np
 from ..errors import DeviceError
 from ..gpu_counters import UploadBuffer
 from ..pipeline.settings import Setting, positive
+from ..shaders import uniform_names
 from .base import (
     GL_SHADER_IMAGE_ACCESS_BARRIER_BIT,
     GL_TEXTURE_FETCH_BARRIER_BIT,
@@ -173,7 +174,7 @@ class LightCullingPass(Pass):
             prog = self._proxy_program()
             prog["gua_grid_view_projection"].write(mat_bytes(self._grid_matrix(frame, tw, th)))
             prog["gua_first_light"] = 0
-            if "gua_grid_size" in prog:
+            if "gua_grid_size" in uniform_names(prog):
                 prog["gua_grid_size"] = (float(tw), float(th))
             self._fbo.use()
             self.ctx.disable(mgl.DEPTH_TEST | mgl.BLEND | mgl.CULL_FACE)
@@ -311,9 +312,9 @@ class LightCullingPass(Pass):
         """Bind the light list (and grid, when built) for a shading program."""
         lg = frame.resources["light_grid"]
         lg["buffer"].bind_to_storage_buffer(3)
-        if "gua_light_count" in prog:
+        if "gua_light_count" in uniform_names(prog):
             prog["gua_light_count"] = lg["count"]
-        if "gua_light_bits" in prog:
+        if "gua_light_bits" in uniform_names(prog):
             if lg["grid"] is not None:
                 lg["grid"].use(location=LIGHT_GRID_UNIT)
             # its own unit even without a grid (no sampler type may share a unit with another);

@@ -9,6 +9,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..materials import MaterialDescription, MaterialRegistry
 from ..scene.graph import MeshData, Scene
+from ..shaders import uniform_names
 
 
 @dataclass
@@ -29,9 +30,9 @@ class Draw:
         """Write the model and normal matrices a program uses (the DrawCache's bytes when it made them)."""
         from .frame import mat_bytes
 
-        if "gua_model_matrix" in prog:
+        if "gua_model_matrix" in uniform_names(prog):
             prog["gua_model_matrix"].write(self.model_bytes or mat_bytes(self.world))
-        if "gua_normal_matrix" in prog:
+        if "gua_normal_matrix" in uniform_names(prog):
             prog["gua_normal_matrix"].write(self.normal_bytes or mat_bytes(np.linalg.inv(self.world).T))
 
 

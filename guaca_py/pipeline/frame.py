@@ -11,6 +11,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..shaders import uniform_names
+
 if TYPE_CHECKING:
     from ..scene.graph import Scene
     from .drawlist import Draw
@@ -82,7 +84,7 @@ class FrameState:
     def set_frame_uniforms(self, prog) -> None:
         """Write the shared camera uniforms a program uses."""
         for name, data in self._frame_uniform_bytes.items():
-            if name in prog:
+            if name in uniform_names(prog):
                 prog[name].write(data)
 
     def bind_lights(self, prog) -> None:

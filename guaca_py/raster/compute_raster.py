@@ -32,7 +32,7 @@ from ..errors import ConfigError
 from ..gpu_counters import CounterBlock
 from ..gpu_timer import Timestamps
 from ..limits import require_bytes
-from ..shaders import SourceMap
+from ..shaders import SourceMap, uniform_names
 from .material_support import compute_material
 
 # state words of raster/state.glsl.j2, in order
@@ -354,15 +354,15 @@ class ComputeRasterizer:
             for prog in (setup, binner, fine):
                 frame.set_frame_uniforms(prog)
                 for k, v in uniforms.items():
-                    if k in prog:
+                    if k in uniform_names(prog):
                         prog[k] = v
-                if "gua_draw_index" in prog:
+                if "gua_draw_index" in uniform_names(prog):
                     prog["gua_draw_index"] = d.index
-                if "gua_any_opaque" in prog:
+                if "gua_any_opaque" in uniform_names(prog):
                     prog["gua_any_opaque"] = any_opaque
-                if "gua_sample_pos" in prog:  # coverage at the hardware's sample points
+                if "gua_sample_pos" in uniform_names(prog):  # coverage at the hardware's sample points
                     prog["gua_sample_pos"].value = r.sample_positions
-                if "gua_sample_span" in prog:
+                if "gua_sample_span" in uniform_names(prog):
                     prog["gua_sample_span"] = span
                 r._set_material_uniforms(prog, d)
                 if per_program is not None:

@@ -125,3 +125,15 @@ class ShaderLibrary:
         """Compile (once per template+variables) a compute shader."""
         key = (template, tuple(sorted((k, str(v)) for k, v in variables.items())))
         return self.program(key, {"compute_shader": (template, variables)}, label=template)
+
+
+def uniform_names(prog) -> frozenset[str]:
+    """The names of a program's uniforms and blocks, gathered once per program.
+
+    moderngl's Program has no __contains__, so `name in prog` walks every member: thousands of
+    steps a frame for scenes of many draws.
+    """
+    names = getattr(prog, "_gua_names", None)
+    if names is None:
+        names = prog._gua_names = frozenset(prog)
+    return names
