@@ -112,9 +112,9 @@ class ComputeRasterizer:
         self.ctx = renderer.ctx
         self._state: CounterBlock | None = None  # queue cursors, indirect dispatch arguments, frame totals
         self._verts = self._large = self._jobs = None
-        self._buckets = self._order = None
+        self._buckets = self._order = self._keys = None
         self.vertex_capacity = 0
-        self.order_capacity = 0  # triangles of the largest draw (the order list)
+        self.order_capacity = 0  # triangles of the largest draw (the order list and the bucket keys)
         self.large_capacity = 0  # queued large triangles per draw
         self.job_capacity = 0  # (triangle, tile) jobs per draw
         self._want: dict[str, int] = {}
@@ -265,11 +265,13 @@ class ComputeRasterizer:
 
     def _fit_order(self, triangles: int) -> None:
         """An order list for draws of up to `triangles` triangles."""
-        require_bytes(self.renderer.caps.limits, triangles * 4, "transparency.raster", _TOO_BIG)
+        require_bytes(self.renderer.caps.limits, triangles * 4, "transparency.raster", _TOO_BIG)  # per buffer
         if triangles > self.order_capacity:
             self._release(self._order)
+            self._release(self._keys)
             self.order_capacity = triangles
             self._order = self.ctx.buffer(reserve=max(1, triangles) * 4)
+            self._keys = self.ctx.buffer(reserve=max(1, triangles) * 4)
 
     def _depth_range(self, frame, draw) -> tuple[float, float]:
         """Nearest and farthest view depth of the draw's bounding box corners (clip w), for the order."""
@@ -284,6 +286,7 @@ class ComputeRasterizer:
         self._fit_order(draw.mesh.triangle_count)
         self._buckets.bind_to_storage_buffer(14)
         self._order.bind_to_storage_buffer(15)
+        self._keys.bind_to_storage_buffer(9)  # the mesh's vertices there served the vertex stage only
         early_termination = bool(getattr(self.renderer.method, "early_termination", False))
         order_kernel["gua_tri_count"] = draw.mesh.triangle_count
         order_kernel["gua_depth_range"] = depth_range
@@ -448,7 +451,7 @@ class ComputeRasterizer:
         """Bytes of the rasterizer's buffers, allocated and used by the busiest draw."""
         return {
             "raster_vertices": self.vertex_capacity * VERTEX_RECORD_BYTES,
-            "raster_order": self.order_capacity * 4 + BUCKETS * 4,
+            "raster_order": 2 * self.order_capacity * 4 + BUCKETS * 4,
             "raster_large_queue": self.large_capacity * 4,
             "raster_large_queue_used": min(large_peak, self.large_capacity) * 4,
             "raster_tile_jobs": self.job_capacity * 8,
@@ -467,9 +470,10 @@ class ComputeRasterizer:
             self._jobs,
             self._buckets,
             self._order,
+            self._keys,
         ):
             self._release(b)
         self._state = self._verts = self._large = self._jobs = None
-        self._buckets = self._order = None
+        self._buckets = self._order = self._keys = None
         self.vertex_capacity = self.large_capacity = self.job_capacity = self.order_capacity = 0
         self._fresh, self._frame = True, None
