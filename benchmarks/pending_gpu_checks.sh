@@ -16,6 +16,9 @@
 #    accuracy with FLIP (~4.5 min)
 # e: Table 1's loop rows of the dragons and hairball_v2 over 24 and 96 frames (~2 min)
 # f: the compute rasterizer's stages, the time between draws and outside it (~1 min)
+# h: the suite, Table 1 with raster: auto, then the compute rasterizer's stages on the dragons,
+#    Sponza v1 and hairball_v2 at 1 and 4 samples (~6 min; after the order stage's changes and the
+#    fenced late counters)
 # order: the suite, then the compute rasterizer's triangle orders (depth, mesh, tile) per method and
 #    scene (benchmarks/results/h100/raster_order/orders.md)
 set -uo pipefail
@@ -82,6 +85,17 @@ elif [[ $part == f ]]; then
   # the compute rasterizer's stages with the time between draws and outside the rasterizer (dragons)
   GUACA_RASTER_STAGES=1 timeout 120 python3 benchmarks/aa_cost.py "$work/raster_stages" --scenes .scenes \
     --scene-names dragons sponza_dabrovic_v1 hairball_v2 --samples 1 4 2>&1 | tail -3
+  tail -12 "$work/raster_stages/aa_cost.md"
+elif [[ $part == h ]]; then
+  timeout 200 python3 -m pytest -q -p no:cacheprovider tests > "$work/pytest_gpu.txt" 2>&1
+  tail -3 "$work/pytest_gpu.txt"
+  pack
+  timeout 240 python3 benchmarks/paper_table.py "$work/paper_table" --raster auto 2>&1 | grep -v "^\s*$" \
+    > "$work/paper_table_log.txt"
+  tail -3 "$work/paper_table_log.txt"
+  pack
+  GUACA_RASTER_STAGES=1 timeout 120 python3 benchmarks/aa_cost.py "$work/raster_stages" --scenes .scenes \
+    --scene-names dragons sponza_dabrovic_v1 hairball_v2 --samples 1 4 2>&1 | tail -2
   tail -12 "$work/raster_stages/aa_cost.md"
 elif [[ $part == order ]]; then
   timeout 200 python3 -m pytest -q -p no:cacheprovider tests > "$work/pytest_gpu.txt" 2>&1
