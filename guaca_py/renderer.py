@@ -26,7 +26,7 @@ from .pipeline.settings import resolve_settings
 from .present import Presenter
 from .raster import RasterRouter
 from .scene.graph import Scene
-from .shaders import ShaderLibrary, SourceMap, uniform_names
+from .shaders import ShaderLibrary, SourceMap, set_uniform, uniform_names
 
 _FIRST_RESOURCES = {"draw_list", "lights"}
 _TEXTURE_UNIT_BASE = 8  # units below are used by the passes' own inputs
@@ -221,12 +221,12 @@ class Renderer:
             value = draw.values[name]
             if spec.type == "sampler2D":
                 self.textures.get(value, draw.material.path.parent).use(location=unit)
-                prog[name] = unit
+                set_uniform(prog, name, unit)
                 unit += 1
             elif spec.type == "mat4":
-                prog[name].write(mat_bytes(np.asarray(value, dtype=np.float64).reshape(4, 4)))
+                set_uniform(prog, name, mat_bytes(np.asarray(value, dtype=np.float64).reshape(4, 4)))
             else:
-                prog[name].value = value if not isinstance(value, list) else tuple(value)
+                set_uniform(prog, name, value if not isinstance(value, list) else tuple(value))
 
     def draw_list(self, frame, draws, transparent: bool, uniforms: dict | None = None, per_program=None) -> None:
         """Draw `draws` with their (opaque or transparent) programs and the given extra uniforms."""

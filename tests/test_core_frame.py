@@ -168,3 +168,23 @@ def test_auto_pool_shrinks_to_the_need_on_later_frames(renderer_factory):
     assert second.stats["memory"]["abuffer_pool"] < first.stats["memory"]["abuffer_pool"]
     assert second.stats["memory"]["abuffer_pool"] <= (need * 1.15 + 1025) * node
     assert (second.image == first.image).all()
+
+
+@pytest.mark.parametrize("raster", ["hardware", "compute"])
+def test_a_renderer_follows_scene_edits_between_frames(renderer_factory, raster):
+    # programs keep their uniforms between frames and guaca writes only changed values
+    # (shaders.set_uniform): a renderer that drew one scene must draw an edited one exactly as a
+    # fresh renderer does, materials, transforms and camera changed
+    def scene(colors, z, eye):
+        s = simple_scene([quad_node(f"q{i}", z[i], c, 0.5) for i, c in enumerate(colors)])
+        s.camera.position = eye
+        return s
+
+    first = scene([(0.9, 0.1, 0.1), (0.1, 0.9, 0.1)], (0.0, -0.5), (0.0, 0.0, 5.0))
+    second = scene([(0.2, 0.3, 0.9), (0.9, 0.8, 0.1)], (0.3, -0.2), (0.6, 0.4, 4.0))
+    used = renderer_factory("exact", method="presort_lf_et", method_overrides={"raster": raster})
+    a = used.render(first, 48, 48).image
+    b = used.render(second, 48, 48).image
+    fresh = renderer_factory("exact", method="presort_lf_et", method_overrides={"raster": raster})
+    assert (b == fresh.render(second, 48, 48).image).all()
+    assert (a != b).any()

@@ -32,7 +32,7 @@ from ..errors import ConfigError
 from ..gpu_counters import CounterBlock
 from ..gpu_timer import Timestamps
 from ..limits import require_bytes
-from ..shaders import SourceMap, uniform_names
+from ..shaders import SourceMap, set_uniform, uniform_names
 from .material_support import compute_material
 
 # state words of raster/state.glsl.j2, in order
@@ -322,6 +322,7 @@ class ComputeRasterizer:
         frame.resources["gbuffer"]["depth"].use(location=DEPTH_UNIT)
         any_opaque = any(not d.transparent for d in frame.draws)
         span = sample_span(r.sample_positions)
+        sample_pos = tuple(tuple(p) for p in r.sample_positions)
         args = self._kernel("raster/args.comp.j2")
         order_kernels = self._kernel("raster/order.comp.j2"), self._kernel("raster/order_scan.comp.j2")
         # draws run one after the other: take them in depth order too (see _order_pass)
@@ -354,19 +355,19 @@ class ComputeRasterizer:
             self._mark("vertex")
             self._order_pass(frame, d, order_kernels, ranges[d.index], span)
             self._mark("order")
+            draw_values = {
+                **uniforms,
+                "gua_draw_index": d.index,
+                "gua_any_opaque": any_opaque,
+                "gua_sample_pos": sample_pos,  # coverage at the hardware's sample points
+                "gua_sample_span": span,
+            }
             for prog in (setup, binner, fine):
                 frame.set_frame_uniforms(prog)
-                for k, v in uniforms.items():
-                    if k in uniform_names(prog):
-                        prog[k] = v
-                if "gua_draw_index" in uniform_names(prog):
-                    prog["gua_draw_index"] = d.index
-                if "gua_any_opaque" in uniform_names(prog):
-                    prog["gua_any_opaque"] = any_opaque
-                if "gua_sample_pos" in uniform_names(prog):  # coverage at the hardware's sample points
-                    prog["gua_sample_pos"].value = r.sample_positions
-                if "gua_sample_span" in uniform_names(prog):
-                    prog["gua_sample_span"] = span
+                names = uniform_names(prog)
+                for k, v in draw_values.items():
+                    if k in names:
+                        set_uniform(prog, k, v)
                 r._set_material_uniforms(prog, d)
                 if per_program is not None:
                     per_program(prog)

@@ -137,3 +137,26 @@ def uniform_names(prog) -> frozenset[str]:
     if names is None:
         names = prog._gua_names = frozenset(prog)
     return names
+
+
+_UNSET = object()
+
+
+def set_uniform(prog, name: str, value) -> None:
+    """Set uniform `name` (bytes: its raw data) unless this helper last gave the program that very value.
+
+    A GL program keeps its uniforms between draws and frames, so a static scene's camera and
+    materials need no writes after the first frame; each write costs moderngl several Python calls,
+    thousands a frame in scenes of many draws. Values are bytes, numbers or tuples (compared by
+    equality); a name must be written only through this helper for the program to stay in step.
+    """
+    held = getattr(prog, "_gua_held", None)
+    if held is None:
+        held = prog._gua_held = {}
+    if held.get(name, _UNSET) == value:
+        return
+    if isinstance(value, bytes):
+        prog[name].write(value)
+    else:
+        prog[name].value = value
+    held[name] = value
