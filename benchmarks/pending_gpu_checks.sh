@@ -31,14 +31,22 @@ fi
 part=${PART:-a}
 # packed after every step: a call cut at its time limit still returns what was measured
 pack() { tar -czf "$out/pending_$part.tgz" -C "$work" .; }
-if [[ $part == a ]]; then
+# the whole test suite on the NVIDIA variants
+suite() {
   timeout 200 python3 -m pytest -q -p no:cacheprovider tests > "$work/pytest_gpu.txt" 2>&1
   tail -3 "$work/pytest_gpu.txt"
   pack
+}
+# Table 1 with raster: auto; $1: how many lines of its log to show
+table() {
   timeout 240 python3 benchmarks/paper_table.py "$work/paper_table" --raster auto 2>&1 | grep -v "^\s*$" \
     > "$work/paper_table_log.txt"
-  tail -12 "$work/paper_table_log.txt"
+  tail -"$1" "$work/paper_table_log.txt"
   pack
+}
+if [[ $part == a ]]; then
+  suite
+  table 12
   timeout 60 python3 benchmarks/aa_cost.py "$work/aa_cost" --scenes .scenes --scene-names dragons --samples 1 4 2>&1 | tail -3
   # where the compute rasterizer's time goes, stage by stage (dragons' x10 target, its AA cost; hairball_v2)
   GUACA_RASTER_STAGES=1 timeout 90 python3 benchmarks/aa_cost.py "$work/raster_stages" --scenes .scenes \
@@ -52,9 +60,7 @@ elif [[ $part == b ]]; then
     > "$work/aa_stability.txt" 2>&1
   tail -8 "$work/aa_stability.txt"
 elif [[ $part == c ]]; then
-  timeout 200 python3 -m pytest -q -p no:cacheprovider tests > "$work/pytest_gpu.txt" 2>&1
-  tail -3 "$work/pytest_gpu.txt"
-  pack
+  suite
   # the 64-bit list walk: a plain load per node passed (default) against an atomicMax per node
   for walk in 0 1; do
     GUACA_ATOMIC_WALK=$walk timeout 100 python3 benchmarks/aa_cost.py "$work/walk_atomic$walk" --scenes .scenes \
@@ -65,10 +71,7 @@ elif [[ $part == c ]]; then
   timeout 200 python3 benchmarks/frame_gaps.py "$work/frame_gaps" \
     --methods presort_lf_et presort_cs unsorted_blend multilayer_depth_peeling 2>&1 | tail -25
 elif [[ $part == d ]]; then
-  timeout 240 python3 benchmarks/paper_table.py "$work/paper_table" --raster auto 2>&1 | grep -v "^\s*$" \
-    > "$work/paper_table_log.txt"
-  tail -12 "$work/paper_table_log.txt"
-  pack
+  table 12
   # the hairballs' speed against error with FLIP (the first H100 tables were made without flip-evaluator)
   PART=accuracy PART_S=280 SCENES_SUBSET="hairball_v1 hairball_v2" bash benchmarks/aa_gpu_run.sh "$work/aa" \
     > "$work/aa_accuracy.txt" 2>&1
@@ -87,13 +90,8 @@ elif [[ $part == f ]]; then
     --scene-names dragons sponza_dabrovic_v1 hairball_v2 --samples 1 4 2>&1 | tail -3
   tail -12 "$work/raster_stages/aa_cost.md"
 elif [[ $part == h ]]; then
-  timeout 200 python3 -m pytest -q -p no:cacheprovider tests > "$work/pytest_gpu.txt" 2>&1
-  tail -3 "$work/pytest_gpu.txt"
-  pack
-  timeout 240 python3 benchmarks/paper_table.py "$work/paper_table" --raster auto 2>&1 | grep -v "^\s*$" \
-    > "$work/paper_table_log.txt"
-  tail -3 "$work/paper_table_log.txt"
-  pack
+  suite
+  table 3
   GUACA_RASTER_STAGES=1 timeout 120 python3 benchmarks/aa_cost.py "$work/raster_stages" --scenes .scenes \
     --scene-names dragons sponza_dabrovic_v1 hairball_v2 --samples 1 4 2>&1 | tail -2
   tail -12 "$work/raster_stages/aa_cost.md"
