@@ -188,3 +188,21 @@ def test_a_renderer_follows_scene_edits_between_frames(renderer_factory, raster)
     fresh = renderer_factory("exact", method="presort_lf_et", method_overrides={"raster": raster})
     assert (b == fresh.render(second, 48, 48).image).all()
     assert (a != b).any()
+
+
+def test_set_uniform_writes_changed_values_only(gl_context):
+    # values from the Python API may be numpy arrays: compared and written as plain tuples
+    from guaca_py.shaders import set_uniform
+
+    prog = gl_context.compute_shader(
+        "#version 450 core\nlayout(local_size_x = 1) in;\nuniform vec3 u;\n"
+        "layout(std430, binding = 0) buffer B { vec4 b; };\nvoid main() { b = vec4(u, 1.0); }\n"
+    )
+    set_uniform(prog, "u", np.array([1.0, 2.0, 3.0], dtype=np.float32))
+    assert prog["u"].value == (1.0, 2.0, 3.0)
+    prog["u"].value = (9.0, 9.0, 9.0)  # written behind the helper's back: it still holds (1, 2, 3)
+    set_uniform(prog, "u", (1.0, 2.0, 3.0))
+    assert prog["u"].value == (9.0, 9.0, 9.0)  # the same value again: no write
+    set_uniform(prog, "u", [4.0, 5.0, 6.0])
+    assert prog["u"].value == (4.0, 5.0, 6.0)
+    prog.release()

@@ -150,6 +150,10 @@ def set_uniform(prog, name: str, value) -> None:
     thousands a frame in scenes of many draws. Values are bytes, numbers or tuples (compared by
     equality); a name must be written only through this helper for the program to stay in step.
     """
+    if hasattr(value, "tolist"):  # numpy arrays and scalars: plain Python values compare as one
+        value = value.tolist()
+    if isinstance(value, list):
+        value = tuple(value)
     held = getattr(prog, "_gua_held", None)
     if held is None:
         held = prog._gua_held = {}
