@@ -2,13 +2,16 @@
 
 Usage: python benchmarks/aa_cost.py OUTDIR --scenes DIR [--scene-names NAME ...] [--size 1024]
                                    [--samples 1 4] [--raster auto hardware compute/mesh] [--paths default 32bit]
-                                   [--warmup-s 1.5] [--frames 8]
+                                   [--warmup-s 1.5] [--frames 8] [--small-area 128 32]
 For every scene, rasterizer (`transparency.raster`) and A-buffer insertion path (`default`: the
 device's, `32bit`: 64-bit atomics switched off, so the CAS-linked lists), the default pipeline at
 each sample count: per-pass GPU medians after a warm-up at the maximum SM clock (paper_table.py's
 timing), stored fragments, and each count's cost against 1 sample. Writes OUTDIR/aa_cost.{json,md}.
 With GUACA_RASTER_STAGES=1 in the environment it adds the compute rasterizer's time per stage
 (vertex, order, setup, bin, fine; the last frame of each row, which waits for its timestamps).
+--small-area takes the compute rasterizer's one-thread bound (candidate boxes of up to that many
+pixels are rasterized by one thread, larger ones by a workgroup) through several values: each
+is a rasterizer column `RASTER sN`.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ from guaca_py import GuacaError, Renderer  # noqa: E402
 from guaca_py.antialiasing import with_samples  # noqa: E402
 from guaca_py.context import create_context  # noqa: E402
 from guaca_py.pipeline.config import load_pipeline  # noqa: E402
+from guaca_py.raster.compute_raster import SMALL_AREA  # noqa: E402
 from guaca_py.scene.loader import load_scene  # noqa: E402
 
 PATHS = {"default": (), "32bit": ("atomic_int64",)}  # capabilities switched off per insertion path
@@ -41,9 +45,10 @@ def run(args) -> list[dict]:
         progress(f"insertion path {path}: {caps.insertion_path}")
         for name in args.scene_names:
             scene = load_scene(args.scenes / f"{name}.yaml")
-            for raster in args.raster:
+            for raster, small in [(r, a) for r in args.raster for a in args.small_area]:
+                label = raster if args.small_area == [SMALL_AREA] else f"{raster} s{small}"
                 for n in args.samples:
-                    row = {"scene": name, "path": caps.insertion_path, "rasterizer": raster, "samples": n}
+                    row = {"scene": name, "path": caps.insertion_path, "rasterizer": label, "samples": n}
                     try:
                         kind, _, order = raster.partition("/")  # compute/ORDER: with that raster_order
                         overrides = {"raster": kind, **({"raster_order": order} if order else {})}
@@ -53,17 +58,18 @@ def run(args) -> list[dict]:
                             method_overrides=overrides,
                             restore_host_state=False,
                         )
+                        r.raster.compute.small_area = small
                         row.update(time_frames(r, scene, args.size, args.warmup_s, args.frames))
                         r.release()
                     except GuacaError as exc:
                         row["skipped"] = str(exc)
                     rows.append(row)
                     if "skipped" in row:
-                        progress(f"  {name} {raster} x{n}: skipped ({row['skipped']})")
+                        progress(f"  {name} {label} x{n}: skipped ({row['skipped']})")
                         continue
                     passes = ", ".join(f"{k} {v:.3f}" for k, v in row["passes_ms"].items())
                     progress(
-                        f"  {name:20s} {caps.insertion_path} {raster:8s} x{n}: {row['total_ms']:8.3f} ms "
+                        f"  {name:20s} {caps.insertion_path} {label:8s} x{n}: {row['total_ms']:8.3f} ms "
                         f"({passes}) stored {row['fragments'].get('stored')} clock {row['clock']}"
                     )
         ctx.release()
@@ -130,6 +136,7 @@ def main(argv=None) -> int:
         help="auto, hardware, compute or compute/ORDER (with raster_order ORDER)",
     )
     ap.add_argument("--paths", nargs="*", default=["default"], choices=list(PATHS))
+    ap.add_argument("--small-area", nargs="*", type=int, default=[SMALL_AREA], help="one-thread bounds (px)")
     ap.add_argument("--warmup-s", type=float, default=1.5)
     ap.add_argument("--frames", type=int, default=8)
     args = ap.parse_args(argv)
