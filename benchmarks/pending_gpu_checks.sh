@@ -19,6 +19,8 @@
 # h: the suite, Table 1 with raster: auto, then the compute rasterizer's stages on the dragons,
 #    Sponza v1 and hairball_v2 at 1 and 4 samples (~6 min; after the order stage's changes and the
 #    fenced late counters)
+# i: as h, then the one-thread bound through 16, 32, 64 and 128 pixels on four scenes at 1 sample,
+#    and on the dragons and hairball_v2 at 4 (~7 min; after the bound went to 16 with chunks)
 # order: the suite, then the compute rasterizer's triangle orders (depth, mesh, tile) per method and
 #    scene (benchmarks/results/h100/raster_order/orders.md)
 set -uo pipefail
@@ -95,6 +97,17 @@ elif [[ $part == h ]]; then
   GUACA_RASTER_STAGES=1 timeout 120 python3 benchmarks/aa_cost.py "$work/raster_stages" --scenes .scenes \
     --scene-names dragons sponza_dabrovic_v1 hairball_v2 --samples 1 4 2>&1 | tail -2
   tail -12 "$work/raster_stages/aa_cost.md"
+elif [[ $part == i ]]; then
+  suite
+  table 3
+  GUACA_RASTER_STAGES=1 timeout 120 python3 benchmarks/aa_cost.py "$work/raster_stages" --scenes .scenes \
+    --scene-names dragons sponza_dabrovic_v1 hairball_v2 --samples 1 4 2>&1 | tail -2
+  pack
+  timeout 150 python3 benchmarks/aa_cost.py "$work/small1" --scenes .scenes --samples 1 --small-area 16 32 64 128 \
+    --scene-names dragons sponza_dabrovic_v1 hairball_v1 hairball_v2 2>&1 | tail -1
+  pack
+  timeout 90 python3 benchmarks/aa_cost.py "$work/small4" --scenes .scenes --samples 4 --small-area 16 32 64 128 \
+    --scene-names dragons hairball_v2 2>&1 | tail -1
 elif [[ $part == order ]]; then
   timeout 200 python3 -m pytest -q -p no:cacheprovider tests > "$work/pytest_gpu.txt" 2>&1
   tail -3 "$work/pytest_gpu.txt"
