@@ -442,7 +442,6 @@ def test_small_random_triangles_match_hardware_coverage(renderer_factory, area):
     n, w = 2000, 96
     scene = random_triangles(n, w, area, 0.3, int(area))
     compute, hardware = both(renderer_factory, "presort_lf")
-    compute.raster.compute.small_area = 128  # the path mix below assumes boxes of up to 128 px on one thread
     c, h = compute.render(scene, w, w), hardware.render(scene, w, w)
     sc, sh = c.stats["fragments"]["stored"], h.stats["fragments"]["stored"]
     assert sh > 0.5 * n * area and abs(sc - sh) <= 0.005 * sh, (sc, sh)
@@ -547,9 +546,8 @@ def test_a_triangles_fragments_get_neighbouring_nodes(renderer_factory):
     # (neighbouring pixels) sit in consecutive nodes, as a fragment shader warp's allocation puts
     # them (fragment-by-fragment allocation spread them over the pool and made the H100's list
     # walks and composite several times slower than with hardware-rasterized lists)
-    scene = random_triangles(1500, 64, 6.0, 0.3, 5, slivers=False)
+    scene = random_triangles(1500, 64, 6.0, 0.3, 5, slivers=False)  # all through the one-thread path
     r = renderer_factory("exact", method="presort_lf", method_overrides={"raster": "compute"})
-    r.raster.compute.small_area = 128  # all through the one-thread path
     frame = r.render(scene, 64, 64)
     m = r.method
     links = np.frombuffer(m._links.read(), dtype=np.uint64 if m.link_bytes == 8 else np.uint32).astype(np.int64)
@@ -724,28 +722,3 @@ def test_stage_profile_reports_each_stage(renderer_factory, monkeypatch):
         assert set(stages) == {"between_draws", "vertex", "order", "setup", "bin", "fine"}, stages
         assert all(v >= 0.0 for v in stages.values())
     assert len(r.raster.compute._stages._marks) == 0
-
-
-@pytest.mark.parametrize("method", ["presort_lf", "presort_lf_et"])
-def test_chunks_keep_the_image_and_bring_large_triangles_in_order(renderer_factory, method):
-    # the setup, bin and fine stages take the ordered triangles chunk by chunk, so a near large
-    # triangle no longer waits for every far small one: same lists, and with early termination at
-    # least as many fragments refused as in one chunk
-    scene = random_triangles(3000, 64, 40.0, 0.3, 7)
-    overrides = {"raster": "compute", "raster_order": "depth", "threshold": 0.9}
-    one, many = (renderer_factory("exact", method=method, method_overrides=overrides) for _ in range(2))
-    one.raster.compute.chunk_triangles = 10**9
-    many.raster.compute.chunk_triangles = 500
-    from guaca_py.pipeline.drawlist import build_draw_list
-
-    a, b = one.render(scene, 64, 64), many.render(scene, 64, 64)
-    draw = build_draw_list(scene, many.materials)[0]
-    assert many.raster.compute.chunks(draw) == 6 and one.raster.compute.chunks(draw) == 1
-    assert b.stats["raster"]["compute"]["large_triangles"] > 300  # the bin stage ran in every chunk
-    if method == "presort_lf":
-        assert a.stats["fragments"]["stored"] == b.stats["fragments"]["stored"]
-        assert (a.image == b.image).all()
-    else:
-        refused = [f.stats["fragments"]["early_termination_culled"] for f in (a, b)]
-        assert refused[1] >= refused[0] > 0, refused
-        assert np.abs(a.image.astype(int) - b.image.astype(int)).max() <= 2

@@ -62,17 +62,7 @@ STATE_WORDS = (
     "setup_z",
 )
 TILE = 8  # tile edge in pixels of the large-triangle path (one 64-thread workgroup per job, as L&K's fine raster)
-# Candidate boxes up to this many pixels are rasterized by one thread, larger ones by a workgroup
-# (bin stage). On the H100 (benchmarks/results/h100/small_area/) 16 against 128 took hairball_v2
-# from 16.1 to 9.6 ms and Sponza v1 from 1.62 to 1.12 ms: one thread walking a box of ~100 pixels
-# holds its whole SIMD group back.
-SMALL_AREA = 16
-# The setup, bin and fine stages take a draw's ordered triangles in chunks of about this many
-# (at most MAX_CHUNKS): all of a chunk's small triangles go in before its large ones, so without
-# chunks a near large triangle would come after every far small one, and early termination, which
-# needs front-to-back arrival, would cull less (hairball_v1: 2.4M -> 4.0M stored at SMALL_AREA 16).
-CHUNK_TRIANGLES = 400_000
-MAX_CHUNKS = 8
+SMALL_AREA = 128  # candidate boxes up to this many pixels are rasterized by one thread
 MEDIUM_AREA = 1024  # larger boxes up to this many pixels by one 64-thread workgroup, without tiles
 DEPTH_UNIT = 7  # texture unit of the G-buffer depth (units 8+ hold material textures)
 VERTEX_RECORD_BYTES = 48  # clip position, world position + u, normal + v
@@ -135,7 +125,6 @@ class ComputeRasterizer:
         self.tile = TILE  # tunable per renderer (benchmarks/raster_sweep.py --tile, --small-area)
         self.small_area = SMALL_AREA
         self.medium_area = MEDIUM_AREA
-        self.chunk_triangles = CHUNK_TRIANGLES
         self._materials: dict[int, tuple] = {}  # id(material) -> (material, ComputeMaterial)
         # GUACA_RASTER_STAGES=1: GPU time per stage in stats (reading it waits for the GPU: profiling only)
         self._stages = Timestamps() if os.environ.get("GUACA_RASTER_STAGES", "") not in ("", "0") else None
@@ -307,7 +296,6 @@ class ComputeRasterizer:
         order_kernel["gua_tile_order"] = order == "tile"
         order_kernel["gua_resolution"] = (frame.width, frame.height)
         order_kernel["gua_sample_span"] = span
-        scan["gua_chunks"] = self.chunks(draw)  # the setup stage's dispatch covers one chunk
         steps = ((0, BUCKETS), (1, draw.mesh.triangle_count), (None, 1), (3, draw.mesh.triangle_count))
         for mode, items in steps:  # clear, count, prefix sum (with the setup stage's dispatch), scatter
             if mode is None:
@@ -384,23 +372,15 @@ class ComputeRasterizer:
                 if per_program is not None:
                     per_program(prog)
             setup["gua_large_capacity"] = self.large_capacity
+            setup.run_indirect(self._state.buffer, STATE_WORDS.index("setup_x") * 4)
+            ctx.memory_barrier()
+            self._mark("setup")
             binner["gua_job_capacity"] = self.job_capacity
-            chunks = self.chunks(d)
-            set_uniform(setup, "gua_chunks", chunks)
-            for chunk in range(chunks):  # the order's front part (all sizes) before its back part
-                set_uniform(setup, "gua_chunk", chunk)
-                setup.run_indirect(self._state.buffer, STATE_WORDS.index("setup_x") * 4)
-                ctx.memory_barrier()
-                self._mark("setup")
-                self._queued_stage(args, 1, self.large_capacity, binner, "bin_x")
-                self._mark("bin")
-                self._queued_stage(args, 2, self.job_capacity, fine, "fine_x")
-                self._mark("fine")
+            self._queued_stage(args, 1, self.large_capacity, binner, "bin_x")
+            self._mark("bin")
+            self._queued_stage(args, 2, self.job_capacity, fine, "fine_x")
+            self._mark("fine")
             self._triangles += d.mesh.triangle_count
-
-    def chunks(self, draw) -> int:
-        """Into how many chunks of its ordered triangles the setup, bin and fine stages take `draw`."""
-        return max(1, min(MAX_CHUNKS, draw.mesh.triangle_count // max(1, self.chunk_triangles)))
 
     def _mark(self, stage: str) -> None:
         """A GPU timestamp at the end of `stage` when stage profiling is on."""
