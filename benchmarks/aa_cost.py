@@ -3,15 +3,17 @@
 Usage: python benchmarks/aa_cost.py OUTDIR --scenes DIR [--scene-names NAME ...] [--size 1024]
                                    [--samples 1 4] [--raster auto hardware compute/mesh] [--paths default 32bit]
                                    [--warmup-s 1.5] [--frames 8] [--small-area 128 32]
+                                   [--small-fragments 8 1e9]
 For every scene, rasterizer (`transparency.raster`) and A-buffer insertion path (`default`: the
 device's, `32bit`: 64-bit atomics switched off, so the CAS-linked lists), the default pipeline at
 each sample count: per-pass GPU medians after a warm-up at the maximum SM clock (paper_table.py's
 timing), stored fragments, and each count's cost against 1 sample. Writes OUTDIR/aa_cost.{json,md}.
 With GUACA_RASTER_STAGES=1 in the environment it adds the compute rasterizer's time per stage
 (vertex, order, setup, bin, fine; the last frame of each row, which waits for its timestamps).
---small-area takes the compute rasterizer's one-thread bound (candidate boxes of up to that many
-pixels are rasterized by one thread, larger ones by a workgroup) through several values: each
-is a rasterizer column `RASTER sN`.
+--small-area and --small-fragments take the compute rasterizer's one-thread bounds (a triangle
+whose candidate box holds up to that many pixels and which covers up to that many px² is
+rasterized by one thread, others by a workgroup) through several values: each pair is a
+rasterizer column `RASTER sN fM`.
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ from guaca_py import GuacaError, Renderer  # noqa: E402
 from guaca_py.antialiasing import with_samples  # noqa: E402
 from guaca_py.context import create_context  # noqa: E402
 from guaca_py.pipeline.config import load_pipeline  # noqa: E402
-from guaca_py.raster.compute_raster import SMALL_AREA  # noqa: E402
+from guaca_py.raster.compute_raster import SMALL_AREA, SMALL_FRAGMENTS  # noqa: E402
 from guaca_py.scene.loader import load_scene  # noqa: E402
 
 PATHS = {"default": (), "32bit": ("atomic_int64",)}  # capabilities switched off per insertion path
@@ -45,8 +47,9 @@ def run(args) -> list[dict]:
         progress(f"insertion path {path}: {caps.insertion_path}")
         for name in args.scene_names:
             scene = load_scene(args.scenes / f"{name}.yaml")
-            for raster, small in [(r, a) for r in args.raster for a in args.small_area]:
-                label = raster if args.small_area == [SMALL_AREA] else f"{raster} s{small}"
+            bounds = [(a, f) for a in args.small_area for f in args.small_fragments]
+            for raster, (small, fragments) in [(r, b) for r in args.raster for b in bounds]:
+                label = raster if bounds == [(SMALL_AREA, SMALL_FRAGMENTS)] else f"{raster} s{small} f{fragments:g}"
                 for n in args.samples:
                     row = {"scene": name, "path": caps.insertion_path, "rasterizer": label, "samples": n}
                     try:
@@ -59,6 +62,7 @@ def run(args) -> list[dict]:
                             restore_host_state=False,
                         )
                         r.raster.compute.small_area = small
+                        r.raster.compute.small_fragments = fragments
                         row.update(time_frames(r, scene, args.size, args.warmup_s, args.frames))
                         r.release()
                     except GuacaError as exc:
@@ -136,7 +140,10 @@ def main(argv=None) -> int:
         help="auto, hardware, compute or compute/ORDER (with raster_order ORDER)",
     )
     ap.add_argument("--paths", nargs="*", default=["default"], choices=list(PATHS))
-    ap.add_argument("--small-area", nargs="*", type=int, default=[SMALL_AREA], help="one-thread bounds (px)")
+    ap.add_argument("--small-area", nargs="*", type=int, default=[SMALL_AREA], help="one-thread box bounds (px)")
+    ap.add_argument(
+        "--small-fragments", nargs="*", type=float, default=[SMALL_FRAGMENTS], help="one-thread area bounds (px²)"
+    )
     ap.add_argument("--warmup-s", type=float, default=1.5)
     ap.add_argument("--frames", type=int, default=8)
     args = ap.parse_args(argv)

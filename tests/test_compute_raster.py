@@ -446,9 +446,11 @@ def test_small_random_triangles_match_hardware_coverage(renderer_factory, area):
     sc, sh = c.stats["fragments"]["stored"], h.stats["fragments"]["stored"]
     assert sh > 0.5 * n * area and abs(sc - sh) <= 0.005 * sh, (sc, sh)
     st = c.stats["raster"]["compute"]
-    # slivers of any area can have large boxes; at 3 px² nearly all go through the one-thread path,
-    # at 40 px² many through a workgroup each, some through tiles: all three paths ran
-    assert st["large_triangles"] < (0.1 if area < 20 else 0.9) * n and st["large_triangles"] > 0, st
+    # slivers of any area can have large boxes, and under perspective (corners at different
+    # depths) screen areas beyond SMALL_FRAGMENTS; at 3 px² most go through the one-thread path,
+    # at 40 px² nearly all through a workgroup each, some through tiles: all three paths ran
+    large = st["large_triangles"]
+    assert (0 < large < 0.15 * n) if area < 20 else (large > 0.9 * n), st
     assert 0 < st["tiled_triangles"] < st["large_triangles"] and st["tile_jobs"] > 0, st
     assert differing(c.image, h.image).mean() < 0.05
 
@@ -546,8 +548,9 @@ def test_a_triangles_fragments_get_neighbouring_nodes(renderer_factory):
     # (neighbouring pixels) sit in consecutive nodes, as a fragment shader warp's allocation puts
     # them (fragment-by-fragment allocation spread them over the pool and made the H100's list
     # walks and composite several times slower than with hardware-rasterized lists)
-    scene = random_triangles(1500, 64, 6.0, 0.3, 5, slivers=False)  # all through the one-thread path
+    scene = random_triangles(1500, 64, 6.0, 0.3, 5, slivers=False)
     r = renderer_factory("exact", method="presort_lf", method_overrides={"raster": "compute"})
+    r.raster.compute.small_fragments = 1e9  # all through the one-thread path, whatever their area
     frame = r.render(scene, 64, 64)
     m = r.method
     links = np.frombuffer(m._links.read(), dtype=np.uint64 if m.link_bytes == 8 else np.uint32).astype(np.int64)
@@ -722,3 +725,18 @@ def test_stage_profile_reports_each_stage(renderer_factory, monkeypatch):
         assert set(stages) == {"between_draws", "vertex", "order", "setup", "bin", "fine"}, stages
         assert all(v >= 0.0 for v in stages.values())
     assert len(r.raster.compute._stages._marks) == 0
+
+
+def test_triangles_of_many_fragments_go_to_a_workgroup(renderer_factory):
+    # boxes well under SMALL_AREA, but 20 px² each: a workgroup shades their fragments side by
+    # side instead of one thread one after another; the lists (and image) are the same either way
+    scene = random_triangles(400, 64, 20.0, 0.4, 9, slivers=False)
+    by_area, by_box = (
+        renderer_factory("exact", method="presort_lf", method_overrides={"raster": "compute"}) for _ in range(2)
+    )
+    by_box.raster.compute.small_fragments = 1e9
+    a, b = by_area.render(scene, 64, 64), by_box.render(scene, 64, 64)
+    assert a.stats["raster"]["compute"]["large_triangles"] > 0.9 * 400
+    assert b.stats["raster"]["compute"]["large_triangles"] == 0
+    assert a.stats["fragments"]["stored"] == b.stats["fragments"]["stored"] > 400 * 15
+    assert (a.image == b.image).all()

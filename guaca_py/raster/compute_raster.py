@@ -62,7 +62,13 @@ STATE_WORDS = (
     "setup_z",
 )
 TILE = 8  # tile edge in pixels of the large-triangle path (one 64-thread workgroup per job, as L&K's fine raster)
-SMALL_AREA = 128  # candidate boxes up to this many pixels are rasterized by one thread
+SMALL_AREA = 128  # candidate boxes up to this many pixels are rasterized by one thread ...
+# ... unless the triangle covers more than this many px²: one thread would shade its many fragments
+# one after another and hold its SIMD group back, a workgroup (bin stage) shades them side by side.
+# The box alone is no measure: a sliver's box is large and its fragments few (hairball_v1: boxes of
+# ~18 px, 5 px² on average, fastest on one thread), a close-up strand's box and area both large
+# (hairball_v2: 72 px, 41 px²). benchmarks/results/h100/small_area/ has the measurements.
+SMALL_FRAGMENTS = 8.0
 MEDIUM_AREA = 1024  # larger boxes up to this many pixels by one 64-thread workgroup, without tiles
 DEPTH_UNIT = 7  # texture unit of the G-buffer depth (units 8+ hold material textures)
 VERTEX_RECORD_BYTES = 48  # clip position, world position + u, normal + v
@@ -124,6 +130,7 @@ class ComputeRasterizer:
         self.regrown = 0
         self.tile = TILE  # tunable per renderer (benchmarks/raster_sweep.py --tile, --small-area)
         self.small_area = SMALL_AREA
+        self.small_fragments = SMALL_FRAGMENTS
         self.medium_area = MEDIUM_AREA
         self._materials: dict[int, tuple] = {}  # id(material) -> (material, ComputeMaterial)
         # GUACA_RASTER_STAGES=1: GPU time per stage in stats (reading it waits for the GPU: profiling only)
@@ -139,6 +146,7 @@ class ComputeRasterizer:
             "raster_state_words": STATE_WORDS,
             "raster_tile": self.tile,
             "raster_small_area": self.small_area,
+            "raster_small_fragments": float(self.small_fragments),
             "raster_medium_area": self.medium_area,
             "raster_depth_unit": DEPTH_UNIT,
             "raster_buckets": BUCKETS,
@@ -171,6 +179,7 @@ class ComputeRasterizer:
             tuple(sorted((k, str(v)) for k, v in mvars.items())),
             self.tile,
             self.small_area,
+            self.small_fragments,
             self.medium_area,
         )
         hit = self._program_sets.get(key)
