@@ -67,8 +67,11 @@ SMALL_AREA = 128  # candidate boxes up to this many pixels are rasterized by one
 # one after another and hold its SIMD group back, a workgroup (bin stage) shades them side by side.
 # The box alone is no measure: a sliver's box is large and its fragments few (hairball_v1: boxes of
 # ~18 px, 5 px² on average, fastest on one thread), a close-up strand's box and area both large
-# (hairball_v2: 72 px, 41 px²). benchmarks/results/h100/small_area/ has the measurements.
-SMALL_FRAGMENTS = 8.0
+# (hairball_v2: 72 px, 41 px²). On the H100 (benchmarks/results/h100/small_area/) 16 px² took
+# hairball_v2 from 15.8 to 12.4 ms and Sponza v1 from 1.58 to 1.25 ms and left the dragons and
+# hairball_v1 as they were; 8 px² gained more on those two but sent a third of hairball_v1's
+# strands out of their depth order (early termination then culled less: 4.6 -> 6.0 ms).
+SMALL_FRAGMENTS = 16.0
 MEDIUM_AREA = 1024  # larger boxes up to this many pixels by one 64-thread workgroup, without tiles
 DEPTH_UNIT = 7  # texture unit of the G-buffer depth (units 8+ hold material textures)
 VERTEX_RECORD_BYTES = 48  # clip position, world position + u, normal + v
