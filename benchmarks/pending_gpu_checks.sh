@@ -19,8 +19,9 @@
 # h: the suite, Table 1 with raster: auto, then the compute rasterizer's stages on the dragons,
 #    Sponza v1 and hairball_v2 at 1 and 4 samples (~6 min; after the order stage's changes and the
 #    fenced late counters)
-# i: as h, then the one-thread bound through 16, 32, 64 and 128 pixels on four scenes at 1 sample,
-#    and on the dragons and hairball_v2 at 4 (~7 min; after the bound went to 16 with chunks)
+# i: as h at the final one-thread bounds (128 px, 16 px²), then the area bound through 8, 16 px² and
+#    none at 1 and 4 samples on the dragons, Sponza v2 and hairball_v2 (~7 min): what this round
+#    could not run for lack of device time
 # order: the suite, then the compute rasterizer's triangle orders (depth, mesh, tile) per method and
 #    scene (benchmarks/results/h100/raster_order/orders.md)
 set -uo pipefail
@@ -37,6 +38,13 @@ pack() { tar -czf "$out/pending_$part.tgz" -C "$work" .; }
 suite() {
   timeout 200 python3 -m pytest -q -p no:cacheprovider tests > "$work/pytest_gpu.txt" 2>&1
   tail -3 "$work/pytest_gpu.txt"
+  pack
+}
+# the compute rasterizer's time per stage, with the time between draws and outside the rasterizer
+stages() {
+  GUACA_RASTER_STAGES=1 timeout 120 python3 benchmarks/aa_cost.py "$work/raster_stages" --scenes .scenes \
+    --scene-names dragons sponza_dabrovic_v1 hairball_v2 --samples 1 4 2>&1 | tail -2
+  tail -12 "$work/raster_stages/aa_cost.md"
   pack
 }
 # Table 1 with raster: auto; $1: how many lines of its log to show
@@ -87,27 +95,18 @@ elif [[ $part == e ]]; then
     pack
   done
 elif [[ $part == f ]]; then
-  # the compute rasterizer's stages with the time between draws and outside the rasterizer (dragons)
-  GUACA_RASTER_STAGES=1 timeout 120 python3 benchmarks/aa_cost.py "$work/raster_stages" --scenes .scenes \
-    --scene-names dragons sponza_dabrovic_v1 hairball_v2 --samples 1 4 2>&1 | tail -3
-  tail -12 "$work/raster_stages/aa_cost.md"
+  stages
 elif [[ $part == h ]]; then
   suite
   table 3
-  GUACA_RASTER_STAGES=1 timeout 120 python3 benchmarks/aa_cost.py "$work/raster_stages" --scenes .scenes \
-    --scene-names dragons sponza_dabrovic_v1 hairball_v2 --samples 1 4 2>&1 | tail -2
-  tail -12 "$work/raster_stages/aa_cost.md"
+  stages
 elif [[ $part == i ]]; then
   suite
   table 3
-  GUACA_RASTER_STAGES=1 timeout 120 python3 benchmarks/aa_cost.py "$work/raster_stages" --scenes .scenes \
-    --scene-names dragons sponza_dabrovic_v1 hairball_v2 --samples 1 4 2>&1 | tail -2
+  stages
   pack
-  timeout 150 python3 benchmarks/aa_cost.py "$work/small1" --scenes .scenes --samples 1 --small-area 16 32 64 128 \
-    --scene-names dragons sponza_dabrovic_v1 hairball_v1 hairball_v2 2>&1 | tail -1
-  pack
-  timeout 90 python3 benchmarks/aa_cost.py "$work/small4" --scenes .scenes --samples 4 --small-area 16 32 64 128 \
-    --scene-names dragons hairball_v2 2>&1 | tail -1
+  timeout 150 python3 benchmarks/aa_cost.py "$work/frag4" --scenes .scenes --samples 1 4 --small-fragments 8 16 1e9 \
+    --scene-names dragons sponza_dabrovic_v2 hairball_v2 2>&1 | tail -1
 elif [[ $part == order ]]; then
   timeout 200 python3 -m pytest -q -p no:cacheprovider tests > "$work/pytest_gpu.txt" 2>&1
   tail -3 "$work/pytest_gpu.txt"
