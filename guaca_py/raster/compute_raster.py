@@ -62,10 +62,10 @@ STATE_WORDS = (
     "setup_z",
 )
 TILE = 8  # tile edge in pixels of the large-triangle path (one 64-thread workgroup per job, as L&K's fine raster)
-SMALL_AREA = 128  # candidate boxes up to this many pixels are rasterized by one thread ...
-# ... unless the triangle covers more than this many px²: one thread would shade its many fragments
-# one after another and hold its SIMD group back, a workgroup (bin stage) shades them side by side.
-# The box alone is no measure: a sliver's box is large and its fragments few (hairball_v1: boxes of
+SMALL_AREA = 128  # candidate boxes up to this many pixels may be rasterized by one thread
+# A triangle covering more than SMALL_FRAGMENTS px² goes to a workgroup (bin stage) even in a small
+# box: one thread would shade its many fragments one after another and hold its SIMD group back,
+# a workgroup shades them side by side. The box alone is no measure: a sliver's box is large and its fragments few (hairball_v1: boxes of
 # ~18 px, 5 px² on average, fastest on one thread), a close-up strand's box and area both large
 # (hairball_v2: 72 px, 41 px²). On the H100 (benchmarks/results/h100/small_area/) 16 px² took
 # hairball_v2 from 15.8 to 12.4 ms and Sponza v1 from 1.58 to 1.25 ms and left the dragons and
@@ -131,7 +131,7 @@ class ComputeRasterizer:
         self._frame = None  # the frame being drawn (a new one always starts afresh)
         self._triangles = 0
         self.regrown = 0
-        self.tile = TILE  # tunable per renderer (benchmarks/raster_sweep.py --tile, --small-area)
+        self.tile = TILE  # tunable per renderer (raster_sweep.py --tile, --small-area; aa_cost.py --small-fragments)
         self.small_area = SMALL_AREA
         self.small_fragments = SMALL_FRAGMENTS
         self.medium_area = MEDIUM_AREA
@@ -277,7 +277,7 @@ class ComputeRasterizer:
 
     def _fit_order(self, triangles: int) -> None:
         """An order list for draws of up to `triangles` triangles."""
-        require_bytes(self.renderer.caps.limits, triangles * 4, "transparency.raster", _TOO_BIG)  # per buffer
+        require_bytes(self.renderer.caps.limits, triangles * 4, "transparency.raster", _TOO_BIG)  # each of the two
         if triangles > self.order_capacity:
             self._release(self._order)
             self._release(self._keys)
