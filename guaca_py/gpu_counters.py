@@ -50,11 +50,14 @@ class FencedCopies:
         self._names = list(names)
         flags = _MAP_READ | _MAP_PERSISTENT | _MAP_COHERENT
         self._maps = []
+        self._free = list(range(slots))
+        self._pending: deque = deque()  # (slot, fence, tag), oldest first
         for name in self._names:
             gl.glNamedBufferStorage(name, size, None, flags | _CLIENT_STORAGE)
             self._maps.append(gl.glMapNamedBufferRange(name, 0, size, flags))
-        self._free = list(range(slots))
-        self._pending: deque = deque()  # (slot, fence, tag), oldest first
+        if not all(self._maps):
+            self.release()
+            raise OSError("the driver did not map a persistent read-back buffer")
 
     def copy(self, buffer, tag: object = None) -> None:
         """Queue a copy of `buffer`'s first `size` bytes (a moderngl buffer) with its tag; the oldest waiting copy is dropped when all slots wait."""
@@ -104,6 +107,17 @@ class FencedCopies:
         self._names, self._maps = [], []
 
 
+def _fenced_or_none(size: int) -> FencedCopies | None:
+    """FencedCopies of `size` bytes on the current context, or None where it cannot have them."""
+    gl = raw_functions_or_none()
+    if gl is None:
+        return None
+    try:
+        return FencedCopies(gl, size)
+    except OSError:
+        return None
+
+
 class CounterBlock:
     """uint32 counters that only shaders update: reset by a GPU copy, read back through a staging copy."""
 
@@ -114,10 +128,9 @@ class CounterBlock:
         self.buffer = ctx.buffer(reserve=size)  # the shaders' copy: never mapped, written or read by the CPU
         self._initial = ctx.buffer(reserve=size)  # reset values, copied over `buffer` on the GPU
         self._staging = ctx.buffer(reserve=size)  # read-back copy
-        gl = raw_functions_or_none()
         # copies read a frame later (frame loops without read-back); a plain buffer read where no
-        # raw GL entry points load
-        self._late = FencedCopies(gl, size) if gl is not None else ctx.buffer(reserve=size)
+        # raw GL entry points load or the driver maps no persistent buffer
+        self._late = _fenced_or_none(size) or ctx.buffer(reserve=size)
         self._late_tag: object = None
         self._late_valid = False
         self._initial_values: tuple[int, ...] | None = None

@@ -64,6 +64,30 @@ def test_fenced_copies_give_the_newest_finished_copy(gl_context):
         buf.release()
 
 
+@pytest.mark.parametrize("fenced", [True, False])
+def test_counters_set_aside_come_back_a_frame_later(gl_context, monkeypatch, fenced):
+    # a frame loop's late read: through fenced mapped copies, or a plain buffer read where the
+    # raw GL entry points do not load; either way the last stage() and its tag, then a fresh read
+    import guaca_py.gpu_counters as gpu_counters
+
+    if not fenced:
+        monkeypatch.setattr(gpu_counters, "raw_functions_or_none", lambda: None)
+    elif raw_functions_or_none() is None:
+        pytest.skip("no raw GL entry points")
+    block = CounterBlock(gl_context, ("a", "b"))
+    try:
+        assert isinstance(block._late, FencedCopies) == fenced
+        block.reset(a=5)
+        block.stage("first")
+        counts, tag, late = block.latest(True)
+        assert late and tag == "first" and counts == {"a": 5, "b": 0}
+        block.reset(a=7)
+        counts, tag, late = block.latest(True)  # nothing set aside since: this frame's, read now
+        assert not late and tag is None and counts["a"] == 7
+    finally:
+        block.release()
+
+
 def test_upload_and_staged_read_round_trip(gl_context):
     up, reader = UploadBuffer(gl_context), StagedReader(gl_context)
     try:
