@@ -240,14 +240,12 @@ class Renderer:
             if switched:
                 frame.set_frame_uniforms(prog)
                 for k, v in (uniforms or {}).items():
-                    if k in uniform_names(prog):
-                        prog[k] = v
+                    set_uniform(prog, k, v)
                 if per_program is not None:
                     per_program(prog)
                 last = prog
             d.write_transform(prog)
-            if "gua_draw_index" in uniform_names(prog):
-                prog["gua_draw_index"] = d.index
+            set_uniform(prog, "gua_draw_index", d.index)
             if switched or d.values is not last_values:  # the same instance as the draw before is all set
                 self._set_material_uniforms(prog, d)
                 last_values = d.values

@@ -205,4 +205,5 @@ def test_set_uniform_writes_changed_values_only(gl_context):
     assert prog["u"].value == (9.0, 9.0, 9.0)  # the same value again: no write
     set_uniform(prog, "u", [4.0, 5.0, 6.0])
     assert prog["u"].value == (4.0, 5.0, 6.0)
+    assert set_uniform(prog, "not_in_the_program", 1.0) is False and set_uniform(prog, "u", (4.0, 5.0, 6.0))
     prog.release()

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..gpu_timer import SamplesQuery
 from ..pipeline.settings import Setting
-from ..shaders import uniform_names
+from ..shaders import set_uniform
 from .base import TransparencyMethod
 
 _FILL_GROUPS_MAX = 4096
@@ -176,8 +176,7 @@ class ForwardBlendMethod(TransparencyMethod):
         """Accumulation targets on the method's texture units (4+)."""
         for unit, (name, tex) in enumerate(zip(("gua_approx_accum", "gua_approx_weight"), self._targets), start=4):
             tex.use(location=unit)
-            if name in uniform_names(program):
-                program[name] = unit
+            set_uniform(program, name, unit)
 
     def memory(self) -> dict:
         """Bytes of the accumulation targets (dense: every byte allocated is used)."""

@@ -16,7 +16,7 @@ import numpy as np
 from ..gpu_counters import CounterBlock, StagedReader
 from ..pipeline.settings import Setting, non_negative, positive
 from ..prefix_sum import GpuFill, PrefixSum, dispatch_grid
-from ..shaders import uniform_names
+from ..shaders import set_uniform
 from .base import TransparencyMethod
 from .presort_lf import _budget
 
@@ -151,8 +151,7 @@ class _CountedStorage(TransparencyMethod):
         """The composite reads the same storage."""
         self.phase = "resolve"
         self._bind()
-        if "gua_cs_capacity" in uniform_names(program):
-            program["gua_cs_capacity"] = self._capacity_uniform()
+        set_uniform(program, "gua_cs_capacity", self._capacity_uniform())
 
     def _capacity_uniform(self) -> int:
         raise NotImplementedError

@@ -21,7 +21,7 @@ import math
 from ..errors import UnsupportedMethodError
 from ..gpu_counters import CounterBlock
 from ..pipeline.settings import Setting
-from ..shaders import uniform_names
+from ..shaders import set_uniform
 from .base import TransparencyMethod
 
 # Counter words of peeling/counters.glsl.j2, in order.
@@ -190,11 +190,9 @@ class PeelingMethod(TransparencyMethod):
         )
         frame.set_frame_uniforms(prog)
         frame.bind_lights(prog)
-        if "gua_threshold" in uniform_names(prog):
-            prog["gua_threshold"] = self.composite_threshold()
-        if "gua_peel_opaque" in uniform_names(prog):
+        set_uniform(prog, "gua_threshold", self.composite_threshold())
+        if set_uniform(prog, "gua_peel_opaque", UNIT_OPAQUE):
             frame.resources["gbuffer"]["depth"].use(location=UNIT_OPAQUE)
-            prog["gua_peel_opaque"] = UNIT_OPAQUE
         self._bind_step_storage(frame)
         units = {"acc_front": 0, "acc_back": 1, "bounds": 2, "range": 3}
         for name_, unit in units.items():
@@ -338,9 +336,8 @@ class PeelingMethod(TransparencyMethod):
         """Accumulations on the method's texture units."""
         for unit, name in ((4, "acc_front"), (5, "acc_back")):
             uname = "gua_peel_front" if name == "acc_front" else "gua_peel_back"
-            if name in self._tex and uname in uniform_names(program):
+            if name in self._tex and set_uniform(program, uname, unit):
                 self._tex[name].use(location=unit)
-                program[uname] = unit
 
     def memory(self) -> dict:
         """Bytes of every texture and buffer; dense per-pixel state is fully used."""

@@ -8,7 +8,7 @@ import os
 from ..gpu_counters import CounterBlock
 from ..limits import pool_node_limit
 from ..pipeline.settings import Setting, non_negative, positive
-from ..shaders import uniform_names
+from ..shaders import set_uniform
 from .base import TransparencyMethod
 
 NODE_PAYLOAD_BYTES = 32  # depth + 7 payload words, see abuffer/layout.glsl.j2
@@ -251,8 +251,7 @@ class PreSortLF(TransparencyMethod):
             ("gua_pixel_count", frame.pixel_count),
             ("gua_ab_threshold", self.threshold()),
         ):
-            if name in uniform_names(program):
-                program[name] = value
+            set_uniform(program, name, value)
 
     def composite_threshold(self) -> float:
         """Without early termination the walk only stops at full opacity."""

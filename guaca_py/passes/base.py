@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, ClassVar
 
 from ..pipeline.settings import Setting
-from ..shaders import uniform_names
+from ..shaders import set_uniform
 
 if TYPE_CHECKING:
     from ..pipeline.frame import FrameState
@@ -130,13 +130,11 @@ class FullscreenPass(Pass):
         fbo = self.target(frame)
         for unit, (uname, tex) in enumerate(inputs.items()):
             tex.use(location=unit)
-            if uname in uniform_names(prog):
-                prog[uname] = unit
+            set_uniform(prog, uname, unit)
         out = fbo.color_attachments[0]
         if self.compute:
             out.bind_to_image(OUTPUT_IMAGE_UNIT, read=False, write=True)
-            if "gua_size" in uniform_names(prog):
-                prog["gua_size"] = (frame.width, frame.height)
+            set_uniform(prog, "gua_size", (frame.width, frame.height))
             prog.run(-(-frame.width // 8), -(-frame.height // 8), 1)
             self.ctx.memory_barrier(IMAGE_OUTPUT_BARRIERS)  # later passes sample the result (or read it back)
             return out

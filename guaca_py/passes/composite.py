@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..shaders import uniform_names
+from ..shaders import set_uniform
 from .base import FullscreenPass
 
 
@@ -68,8 +68,7 @@ class CompositePass(FullscreenPass):
         if method is not None:
             method.bind_composite(frame, prog)
         threshold = method.composite_threshold() if method else 1.0
-        if "gua_threshold" in uniform_names(prog):  # compiled out when nothing is composited under the fragments
-            prog["gua_threshold"] = threshold
+        set_uniform(prog, "gua_threshold", threshold)  # compiled out when nothing is composited under the fragments
         prog["gua_background"].write(np.asarray(frame.scene.background, dtype=np.float32).tobytes())
         if self.epilogue is not None:
             self.epilogue.set_epilogue_uniforms(prog)

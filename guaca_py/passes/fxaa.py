@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ..pipeline.settings import NUMBER, Setting, unit_interval
-from ..shaders import uniform_names
+from ..shaders import set_uniform
 from .base import FullscreenPass
 
 
@@ -27,8 +27,7 @@ class FxaaPass(FullscreenPass):
             frame.stats.setdefault("skipped", {})[self.name] = "the image holds one colour (no edges)"
             return
         prog = self.program(frame)
-        prog["gua_edge_threshold"] = float(self.settings["edge_threshold"])
-        if "gua_resolution" in uniform_names(prog):
-            prog["gua_resolution"] = (float(frame.width), float(frame.height))
+        set_uniform(prog, "gua_edge_threshold", float(self.settings["edge_threshold"]))
+        set_uniform(prog, "gua_resolution", (float(frame.width), float(frame.height)))
         tex = self.run_fullscreen(frame, prog, {"gua_input": src})
         frame.resources["ldr"] = frame.resources["color"] = tex

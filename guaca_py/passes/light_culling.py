@@ -10,7 +10,7 @@ import numpy as np
 from ..errors import DeviceError
 from ..gpu_counters import UploadBuffer
 from ..pipeline.settings import Setting, positive
-from ..shaders import uniform_names
+from ..shaders import set_uniform
 from .base import (
     GL_SHADER_IMAGE_ACCESS_BARRIER_BIT,
     GL_TEXTURE_FETCH_BARRIER_BIT,
@@ -174,8 +174,7 @@ class LightCullingPass(Pass):
             prog = self._proxy_program()
             prog["gua_grid_view_projection"].write(mat_bytes(self._grid_matrix(frame, tw, th)))
             prog["gua_first_light"] = 0
-            if "gua_grid_size" in uniform_names(prog):
-                prog["gua_grid_size"] = (float(tw), float(th))
+            set_uniform(prog, "gua_grid_size", (float(tw), float(th)))
             self._fbo.use()
             self.ctx.disable(mgl.DEPTH_TEST | mgl.BLEND | mgl.CULL_FACE)
             self._grid.bind_to_image(0, read=True, write=True)
@@ -312,16 +311,14 @@ class LightCullingPass(Pass):
         """Bind the light list (and grid, when built) for a shading program."""
         lg = frame.resources["light_grid"]
         lg["buffer"].bind_to_storage_buffer(3)
-        if "gua_light_count" in uniform_names(prog):
-            prog["gua_light_count"] = lg["count"]
-        if "gua_light_bits" in uniform_names(prog):
+        set_uniform(prog, "gua_light_count", lg["count"])
+        # its own unit even without a grid (no sampler type may share a unit with another);
+        # with 0 layers nothing samples it
+        if set_uniform(prog, "gua_light_bits", LIGHT_GRID_UNIT):
             if lg["grid"] is not None:
                 lg["grid"].use(location=LIGHT_GRID_UNIT)
-            # its own unit even without a grid (no sampler type may share a unit with another);
-            # with 0 layers nothing samples it
-            prog["gua_light_bits"] = LIGHT_GRID_UNIT
-            prog["gua_tile_size"] = lg["tile_size"]
-            prog["gua_light_layers"] = lg["layers"]
+            set_uniform(prog, "gua_tile_size", lg["tile_size"])
+            set_uniform(prog, "gua_light_layers", lg["layers"])
 
     def template_vars(self) -> dict:
         """Shader variables describing how lights are looked up."""

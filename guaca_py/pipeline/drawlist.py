@@ -9,7 +9,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..materials import MaterialDescription, MaterialRegistry
 from ..scene.graph import MeshData, Scene
-from ..shaders import uniform_names
+from ..shaders import set_uniform, uniform_names
 
 
 @dataclass
@@ -30,10 +30,9 @@ class Draw:
         """Write the model and normal matrices a program uses (the DrawCache's bytes when it made them)."""
         from .frame import mat_bytes
 
-        if "gua_model_matrix" in uniform_names(prog):
-            prog["gua_model_matrix"].write(self.model_bytes or mat_bytes(self.world))
-        if "gua_normal_matrix" in uniform_names(prog):
-            prog["gua_normal_matrix"].write(self.normal_bytes or mat_bytes(np.linalg.inv(self.world).T))
+        set_uniform(prog, "gua_model_matrix", self.model_bytes or mat_bytes(self.world))
+        if "gua_normal_matrix" in uniform_names(prog):  # the inverse only where it is used
+            set_uniform(prog, "gua_normal_matrix", self.normal_bytes or mat_bytes(np.linalg.inv(self.world).T))
 
 
 MAX_WORLD = 1.0e7  # float32 positions step by 1 at 1.7e7; llvmpipe's clipper drops triangles past ~1e8

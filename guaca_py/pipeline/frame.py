@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..shaders import set_uniform, uniform_names
+from ..shaders import set_uniform
 
 if TYPE_CHECKING:
     from ..scene.graph import Scene
@@ -84,8 +84,7 @@ class FrameState:
     def set_frame_uniforms(self, prog) -> None:
         """Write the shared camera uniforms a program uses."""
         for name, data in self._frame_uniform_bytes.items():
-            if name in uniform_names(prog):
-                set_uniform(prog, name, data)
+            set_uniform(prog, name, data)
 
     def bind_lights(self, prog) -> None:
         """Bind the culled lights (and light grid) for a program that includes shading/lighting."""

@@ -32,7 +32,7 @@ from ..errors import ConfigError
 from ..gpu_counters import CounterBlock
 from ..gpu_timer import Timestamps
 from ..limits import require_bytes
-from ..shaders import SourceMap, set_uniform, uniform_names
+from ..shaders import SourceMap, set_uniform
 from .material_support import compute_material
 
 # state words of raster/state.glsl.j2, in order
@@ -308,14 +308,17 @@ class ComputeRasterizer:
         order_kernel["gua_tile_order"] = order == "tile"
         order_kernel["gua_resolution"] = (frame.width, frame.height)
         order_kernel["gua_sample_span"] = span
-        steps = ((0, BUCKETS), (1, draw.mesh.triangle_count), (None, 1), (3, draw.mesh.triangle_count))
-        for mode, items in steps:  # clear, count, prefix sum (with the setup stage's dispatch), scatter
-            if mode is None:
-                scan.run(1)
-            else:
-                order_kernel["gua_order_mode"] = mode
-                order_kernel.run(*_grid(items))
+
+        def mode(m: int, items: int) -> None:
+            order_kernel["gua_order_mode"] = m
+            order_kernel.run(*_grid(items))
             ctx.memory_barrier()
+
+        mode(0, BUCKETS)  # clear the bucket counts
+        mode(1, draw.mesh.triangle_count)  # count
+        scan.run(1)  # prefix sum, and the setup stage's dispatch
+        ctx.memory_barrier()
+        mode(3, draw.mesh.triangle_count)  # scatter
 
     @staticmethod
     def _release(buf) -> None:
@@ -376,10 +379,8 @@ class ComputeRasterizer:
             }
             for prog in (setup, binner, fine):
                 frame.set_frame_uniforms(prog)
-                names = uniform_names(prog)
                 for k, v in draw_values.items():
-                    if k in names:
-                        set_uniform(prog, k, v)
+                    set_uniform(prog, k, v)
                 r._set_material_uniforms(prog, d)
                 if per_program is not None:
                     per_program(prog)

@@ -142,14 +142,17 @@ def uniform_names(prog) -> frozenset[str]:
 _UNSET = object()
 
 
-def set_uniform(prog, name: str, value) -> None:
-    """Set uniform `name` (bytes: its raw data) unless this helper last gave the program that very value.
+def set_uniform(prog, name: str, value) -> bool:
+    """Set uniform `name` (bytes: its raw data) where the program uses it; returns whether it does.
 
-    A GL program keeps its uniforms between draws and frames, so a static scene's camera and
-    materials need no writes after the first frame; each write costs moderngl several Python calls,
-    thousands a frame in scenes of many draws. Values are bytes, numbers or tuples (compared by
-    equality); a name must be written only through this helper for the program to stay in step.
+    A GL program keeps its uniforms between draws and frames, so a value this helper already gave
+    the program is not written again: a static scene's camera and materials need no writes after
+    the first frame, where each write costs moderngl several Python calls, thousands a frame in
+    scenes of many draws. Values are bytes, numbers or tuples (compared by equality). guaca writes
+    every uniform through here, so what it remembers is what the program holds.
     """
+    if name not in uniform_names(prog):
+        return False
     if hasattr(value, "tolist"):  # numpy arrays and scalars: plain Python values compare as one
         value = value.tolist()
     if isinstance(value, list):
@@ -157,10 +160,10 @@ def set_uniform(prog, name: str, value) -> None:
     held = getattr(prog, "_gua_held", None)
     if held is None:
         held = prog._gua_held = {}
-    if held.get(name, _UNSET) == value:
-        return
-    if isinstance(value, bytes):
-        prog[name].write(value)
-    else:
-        prog[name].value = value
-    held[name] = value
+    if held.get(name, _UNSET) != value:
+        if isinstance(value, bytes):
+            prog[name].write(value)
+        else:
+            prog[name].value = value
+        held[name] = value
+    return True
