@@ -107,6 +107,35 @@ class FencedCopies:
         self._names, self._maps = [], []
 
 
+class _BufferCopies:
+    """FencedCopies' interface over one plain buffer read back by the driver (its read waits for the GPU)."""
+
+    def __init__(self, ctx, size: int):
+        self.ctx, self._buffer = ctx, ctx.buffer(reserve=size)
+        self._tag: object = None
+        self._valid = False
+
+    def copy(self, buffer, tag: object = None) -> None:
+        """Copy `buffer` over the one held copy."""
+        self.ctx.copy_buffer(self._buffer, buffer)
+        self._tag, self._valid = tag, True
+
+    def newest(self) -> tuple[bytes, object] | None:
+        """(bytes, tag) of the last copy not read yet; None when there is none."""
+        if not self._valid:
+            return None
+        self._valid = False
+        return self._buffer.read(), self._tag
+
+    def discard(self) -> None:
+        """Forget the held copy."""
+        self._valid = False
+
+    def release(self) -> None:
+        """Free the buffer."""
+        self._buffer.release()
+
+
 def _fenced_or_none(size: int) -> FencedCopies | None:
     """FencedCopies of `size` bytes on the current context, or None where it cannot have them."""
     gl = raw_functions_or_none()
@@ -130,9 +159,7 @@ class CounterBlock:
         self._staging = ctx.buffer(reserve=size)  # read-back copy
         # copies read a frame later (frame loops without read-back); a plain buffer read where no
         # raw GL entry points load or the driver maps no persistent buffer
-        self._late = _fenced_or_none(size) or ctx.buffer(reserve=size)
-        self._late_tag: object = None
-        self._late_valid = False
+        self._late = _fenced_or_none(size) or _BufferCopies(ctx, size)
         self._initial_values: tuple[int, ...] | None = None
 
     def reset(self, **values: int) -> None:
@@ -150,9 +177,7 @@ class CounterBlock:
 
     def read(self) -> dict[str, int]:
         """The counters by name (waits for the GPU work that updates them); an older stage() is dropped."""
-        self._late_valid = False  # a frame read now: what was set aside before it is older than that
-        if isinstance(self._late, FencedCopies):
-            self._late.discard()
+        self._late.discard()  # a frame read now: what was set aside before it is older than that
         src = self.buffer
         if not direct_cpu_access():
             self.ctx.copy_buffer(self._staging, self.buffer)
@@ -161,25 +186,14 @@ class CounterBlock:
 
     def stage(self, tag: object = None) -> None:
         """Copy the counters aside on the GPU, to be read by staged() a frame later without waiting now."""
-        if isinstance(self._late, FencedCopies):
-            self._late.copy(self.buffer, tag)
-            return
-        self.ctx.copy_buffer(self._late, self.buffer)
-        self._late_tag, self._late_valid = tag, True
+        self._late.copy(self.buffer, tag)
 
     def staged(self) -> tuple[dict[str, int], object] | None:
         """The counters of the newest stage() the GPU has finished and its tag; None if none was staged."""
-        if isinstance(self._late, FencedCopies):
-            got = self._late.newest()
-            if got is None:
-                return None
-            data, tag = got
-        elif self._late_valid:
-            self._late_valid = False
-            data, tag = self._late.read(), self._late_tag
-        else:
+        got = self._late.newest()
+        if got is None:
             return None
-        return dict(zip(self.names, np.frombuffer(data, dtype=np.uint32).tolist())), tag
+        return dict(zip(self.names, np.frombuffer(got[0], dtype=np.uint32).tolist())), got[1]
 
     def latest(self, late: bool) -> tuple[dict[str, int], object, bool]:
         """(counters, stage() tag, whether staged): with `late` (a frame loop without read-back) the
