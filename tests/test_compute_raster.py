@@ -175,7 +175,7 @@ def test_order_stage_drops_only_triangles_that_cover_no_sample(renderer_factory,
     for pixel in range(w * w):
         node, union, total = int(links[pixel]) & 0xFFFFFFFF, 0, 0
         while node:
-            mask = int(words[node, 6]) >> 16
+            mask = (int(words[node, 6]) >> 16) & 0xFF  # bit 31: the facing
             union, total = union | mask, total + mask
             node = int(links[m._pixels + node]) & 0xFFFFFFFF
         assert union == total == (1 << samples) - 1, (pixel, union, total)

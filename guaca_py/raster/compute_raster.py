@@ -292,6 +292,11 @@ class ComputeRasterizer:
         w = corners @ (frame.projection @ frame.view @ draw.world)[3]
         return float(max(w.min(), 0.0)), float(max(w.max(), 0.0))
 
+    def _front_to_back(self) -> bool:
+        if os.environ.get("GUACA_EXP_BACK_TO_FRONT", "") not in ("", "0"):
+            return False
+        return bool(getattr(self.renderer.method, "early_termination", False))
+
     def _order_pass(self, frame, draw, order_kernels, depth_range: tuple[float, float], span) -> None:
         """Bucket-sort the draw's triangles in the frustum by view depth, index or screen tile (order.comp.j2)."""
         ctx, (order_kernel, scan) = self.ctx, order_kernels
@@ -299,7 +304,7 @@ class ComputeRasterizer:
         self._buckets.bind_to_storage_buffer(14)
         self._order.bind_to_storage_buffer(15)
         self._keys.bind_to_storage_buffer(9)  # the mesh's vertices there served the vertex stage only
-        early_termination = bool(getattr(self.renderer.method, "early_termination", False))
+        early_termination = self._front_to_back()
         order_kernel["gua_tri_count"] = draw.mesh.triangle_count
         order_kernel["gua_depth_range"] = depth_range
         order_kernel["gua_back_to_front"] = not early_termination
@@ -342,7 +347,7 @@ class ComputeRasterizer:
         order_kernels = self._kernel("raster/order.comp.j2"), self._kernel("raster/order_scan.comp.j2")
         # draws run one after the other: take them in depth order too (see _order_pass)
         ranges = {d.index: self._depth_range(frame, d) for d in draws}
-        if getattr(r.method, "early_termination", False):
+        if self._front_to_back():
             draws = sorted(draws, key=lambda d: ranges[d.index][0])
         else:
             draws = sorted(draws, key=lambda d: -ranges[d.index][1])
