@@ -98,7 +98,7 @@ def _node_masks(method, pixel: int, with_tie: bool = False) -> list:
     words = np.frombuffer(method._nodes.read(), np.uint32).reshape(-1, 8)
     n, masks = int(links[pixel]) & 0xFFFFFFFF, []
     while n:
-        mask = (int(words[n, 6]) >> 16) & 0xFF  # bit 31: the facing
+        mask = int(words[n, 6]) >> 16
         masks.append((int(words[n, 7]), mask) if with_tie else mask)
         n = int(links[method._pixels + n]) & 0xFFFFFFFF
     return masks

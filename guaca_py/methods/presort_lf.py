@@ -12,7 +12,7 @@ from ..shaders import set_uniform
 from .base import TransparencyMethod
 
 NODE_PAYLOAD_BYTES = 32  # depth + 7 payload words, see abuffer/layout.glsl.j2
-COUNTERS = ("alloc", "unlinked", "et_dropped", "et_culled", "guard", "merged")  # abuffer/layout.glsl.j2, same order
+COUNTERS = ("alloc", "unlinked", "et_dropped", "et_culled", "guard")  # abuffer/layout.glsl.j2, same order
 _INT64_EXT = "#extension GL_ARB_gpu_shader_int64 : require\n#extension GL_NV_shader_atomic_int64 : require\n"
 _BALLOT_EXT = "#extension GL_ARB_gpu_shader_int64 : require\n#extension GL_ARB_shader_ballot : require\n"
 
@@ -164,7 +164,6 @@ class PreSortLF(TransparencyMethod):
             "et_culled": c["et_culled"],
             "early_termination_culled": c["et_dropped"] + c["et_culled"],
             "guard_abandoned": c["guard"],
-            "merged": c["merged"],
             "nodes_requested": requested,
         }
         self._last = {"used_nodes": used}
@@ -235,12 +234,12 @@ class PreSortLF(TransparencyMethod):
             "subgroup_counts": ballot,
             "subgroup_alloc": ballot and self.path == "64bit",
             "aa_samples": self.aa_samples,
-            "merge_cos": float(os.environ.get("GUACA_MERGE_COS", "-2")),
-            "exp_no_insert": os.environ.get("GUACA_EXP_NO_INSERT", "") not in ("", "0"),
-            "surface_merge": self.aa_samples > 1 and os.environ.get("GUACA_SURFACE_MERGE", "") not in ("", "0"),
             # the 64-bit walk spends an atomicMax per node it passes (GUACA_ATOMIC_WALK=1, to measure
             # against the default: a plain load per node passed, an atomic only where it may insert)
             "atomic_walk": os.environ.get("GUACA_ATOMIC_WALK", "") not in ("", "0"),
+            # profiling only (GUACA_SKIP_INSERTION=1): fragments are rasterized and shaded but never
+            # inserted, so a frame's time is what the rasterizer costs without the A-buffer
+            "skip_insertion": os.environ.get("GUACA_SKIP_INSERTION", "") not in ("", "0"),
         }
 
     def extensions(self) -> str:

@@ -292,10 +292,9 @@ class ComputeRasterizer:
         w = corners @ (frame.projection @ frame.view @ draw.world)[3]
         return float(max(w.min(), 0.0)), float(max(w.max(), 0.0))
 
-    def _front_to_back(self) -> bool:
-        if os.environ.get("GUACA_EXP_BACK_TO_FRONT", "") not in ("", "0"):
-            return False
-        return bool(getattr(self.renderer.method, "early_termination", False))
+    def _front_to_back(self, order: str) -> bool:
+        """Whether depth runs nearest first: for early termination, unless the order says back_to_front."""
+        return order != "back_to_front" and bool(getattr(self.renderer.method, "early_termination", False))
 
     def _order_pass(self, frame, draw, order_kernels, depth_range: tuple[float, float], span) -> None:
         """Bucket-sort the draw's triangles in the frustum by view depth, index or screen tile (order.comp.j2)."""
@@ -304,11 +303,10 @@ class ComputeRasterizer:
         self._buckets.bind_to_storage_buffer(14)
         self._order.bind_to_storage_buffer(15)
         self._keys.bind_to_storage_buffer(9)  # the mesh's vertices there served the vertex stage only
-        early_termination = self._front_to_back()
+        order = self.renderer.method.raster_order()
         order_kernel["gua_tri_count"] = draw.mesh.triangle_count
         order_kernel["gua_depth_range"] = depth_range
-        order_kernel["gua_back_to_front"] = not early_termination
-        order = self.renderer.method.raster_order()
+        order_kernel["gua_back_to_front"] = not self._front_to_back(order)
         order_kernel["gua_mesh_order"] = order == "mesh"
         order_kernel["gua_tile_order"] = order == "tile"
         order_kernel["gua_resolution"] = (frame.width, frame.height)
@@ -347,7 +345,7 @@ class ComputeRasterizer:
         order_kernels = self._kernel("raster/order.comp.j2"), self._kernel("raster/order_scan.comp.j2")
         # draws run one after the other: take them in depth order too (see _order_pass)
         ranges = {d.index: self._depth_range(frame, d) for d in draws}
-        if self._front_to_back():
+        if self._front_to_back(r.method.raster_order()):
             draws = sorted(draws, key=lambda d: ranges[d.index][0])
         else:
             draws = sorted(draws, key=lambda d: -ranges[d.index][1])
