@@ -27,6 +27,3 @@ run() {  # name, VAR=value..., --, aa_cost.py arguments
 run base GUACA_SKIP_INSERTION=0 -- --samples 1 4
 run skip_insertion GUACA_SKIP_INSERTION=1 -- --samples 1 4
 run back_to_front GUACA_SKIP_INSERTION=0 -- --samples 1 4 --raster auto/back_to_front
-[[ -n ${EXTRA:-} ]] && run coverage_only GUACA_SKIP_INSERTION=1 GUACA_EXP_SKIP_SHADING=1 -- --samples 1 4
-[[ -n ${EXTRA:-} ]] && run no_reserve GUACA_EXP_NO_RESERVE=1 -- --samples 1 4
-[[ -n ${EXTRA:-} ]] && run no_reserve_b2f GUACA_EXP_NO_RESERVE=1 -- --samples 1 4 --raster auto/back_to_front

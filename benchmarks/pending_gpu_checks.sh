@@ -22,6 +22,9 @@
 # i: as h at the final one-thread bounds (128 px, 16 px²), then the area bound through 8, 16 px² and
 #    none at 1 and 4 samples on the dragons, Sponza v2 and hairball_v2 (~7 min): what this round
 #    could not run for lack of device time
+# j1: the suite and Table 1 with raster: auto (~5 min); j2: the compute rasterizer's stages at 1 and 4
+#    samples, every scene at 1 and 4 samples in the default and the back_to_front order, the dragons'
+#    edge error at 1 and 4 samples, the area bound through 8, 16 px² and none (~5 min)
 # order: the suite, then the compute rasterizer's triangle orders (depth, mesh, tile) per method and
 #    scene (benchmarks/results/h100/raster_order/orders.md)
 set -uo pipefail
@@ -104,6 +107,22 @@ elif [[ $part == i ]]; then
   suite
   table 3
   stages
+  pack
+  timeout 150 python3 benchmarks/aa_cost.py "$work/frag4" --scenes .scenes --samples 1 4 --small-fragments 8 16 1e9 \
+    --scene-names dragons sponza_dabrovic_v2 hairball_v2 2>&1 | tail -1
+elif [[ $part == j1 ]]; then
+  suite
+  table 3
+elif [[ $part == j2 ]]; then
+  stages
+  # every scene at 1 and 4 samples in the default order and back to front
+  timeout 200 python3 benchmarks/aa_cost.py "$work/aa_orders" --scenes .scenes --samples 1 4 \
+    --raster auto auto/back_to_front 2>&1 | tail -1
+  tail -22 "$work/aa_orders/aa_cost.md" | head -22
+  pack
+  # the dragons' edge error at 1 and 4 samples against the 8x8-supersampled exact frame
+  timeout 120 python3 benchmarks/accuracy_scenes.py "$work/accuracy" --scenes .scenes --scene-names dragons \
+    --methods presort_lf_et --samples 1 4 2>&1 | tail -4
   pack
   timeout 150 python3 benchmarks/aa_cost.py "$work/frag4" --scenes .scenes --samples 1 4 --small-fragments 8 16 1e9 \
     --scene-names dragons sponza_dabrovic_v2 hairball_v2 2>&1 | tail -1

@@ -155,8 +155,6 @@ class ComputeRasterizer:
             "raster_buckets": BUCKETS,
             "raster_order_tile_bits": ORDER_TILE_BITS,
             "raster_scan_lanes": SCAN_LANES,
-            "exp_skip_shading": os.environ.get("GUACA_EXP_SKIP_SHADING", "") not in ("", "0"),
-            "exp_no_reserve": os.environ.get("GUACA_EXP_NO_RESERVE", "") not in ("", "0"),
         }
 
     def _compute_material(self, mat):
