@@ -25,6 +25,8 @@
 # j1: the suite and Table 1 with raster: auto (~5 min); j2: the compute rasterizer's stages at 1 and 4
 #    samples, every scene at 1 and 4 samples in the default and the back_to_front order, the dragons'
 #    edge error at 1 and 4 samples, the area bound through 8, 16 px² and none (~5 min)
+# k1: Table 1 and the anti-aliasing cost with stage times on four scenes, after `auto` took its depth
+#    direction from the counted frames (~3 min); k2: the suite and the dragons' temporal stability (~4 min)
 # order: the suite, then the compute rasterizer's triangle orders (depth, mesh, tile) per method and
 #    scene (benchmarks/results/h100/raster_order/orders.md)
 set -uo pipefail
@@ -126,6 +128,15 @@ elif [[ $part == j2 ]]; then
   pack
   timeout 150 python3 benchmarks/aa_cost.py "$work/frag4" --scenes .scenes --samples 1 4 --small-fragments 8 16 1e9 \
     --scene-names dragons sponza_dabrovic_v2 hairball_v2 2>&1 | tail -1
+elif [[ $part == k1 ]]; then
+  table 3
+  GUACA_RASTER_STAGES=1 timeout 120 python3 benchmarks/aa_cost.py "$work/aa_auto" --scenes .scenes --samples 1 4 \
+    --scene-names dragons sponza_dabrovic_v1 hairball_v1 hairball_v2 2>&1 | tail -1
+  grep -E "^\| (dragons|sponza|hairball)" "$work/aa_auto/aa_cost.md" | head -8
+elif [[ $part == k2 ]]; then
+  suite
+  PART=stability PART_S=200 SCENES_SUBSET="dragons" bash benchmarks/aa_gpu_run.sh "$work/aa" > "$work/aa_stability.txt" 2>&1
+  tail -6 "$work/aa_stability.txt"
 elif [[ $part == order ]]; then
   timeout 200 python3 -m pytest -q -p no:cacheprovider tests > "$work/pytest_gpu.txt" 2>&1
   tail -3 "$work/pytest_gpu.txt"
