@@ -615,56 +615,6 @@ def test_triangles_are_taken_in_depth_order(renderer_factory, method, order, far
             assert np.abs(depth.render(scene, 32, 32).linear - frame.linear).max() * 255 < 0.5
 
 
-def test_depth_direction_follows_what_early_termination_culls():
-    from guaca_py.raster.depth_direction import BACK_TO_FRONT, FRONT_TO_BACK, DepthDirection
-
-    d = DepthDirection()
-    assert d.order == FRONT_TO_BACK  # the first frame measures
-    d.observe(FRONT_TO_BACK, stored=1000, culled=900)  # culls 47 %: stays
-    assert d.order == FRONT_TO_BACK
-    d.observe(FRONT_TO_BACK, stored=1000, culled=20)  # 2 %: back to front
-    assert d.order == BACK_TO_FRONT and "2.0%" in d.reason
-    for _ in range(DepthDirection.REPROBE_FRAMES - 1):
-        d.observe(BACK_TO_FRONT, stored=1020, culled=0)
-        assert d.order == BACK_TO_FRONT
-    d.observe(BACK_TO_FRONT, stored=1020, culled=0)  # measured again after REPROBE_FRAMES
-    assert d.order == FRONT_TO_BACK
-    d.observe(FRONT_TO_BACK, stored=1000, culled=20)
-    d.observe(BACK_TO_FRONT, stored=1400, culled=0)  # a new view: 37 % more fragments
-    assert d.order == FRONT_TO_BACK and "changed" in d.reason
-    d.observe(FRONT_TO_BACK, stored=0, culled=0)  # nothing drawn: nothing known, stays front to back
-    assert d.order == FRONT_TO_BACK
-
-
-def test_auto_depth_direction_across_frames(renderer_factory):
-    # two layers (early termination culls nothing): the first frame goes front to back, the next
-    # ones back to front, with the same image; a 24-layer stack then (culled most) goes front to
-    # back again from its first frame on, since the fragments changed
-    def stack(n: int):
-        quads = [tessellated_plane(1, 12.0, 0.0) for _ in range(n)]
-        pos = np.concatenate([q.positions + np.float32([0, 0, z]) for q, z in zip(quads, np.linspace(-3.0, 2.0, n))])
-        idx = np.concatenate([q.indices + 4 * i for i, q in enumerate(quads)]).astype(np.uint32)
-        mesh = MeshData(pos, np.tile(np.float32([0, 0, 1]), (len(pos), 1)), np.zeros((len(pos), 2), np.float32), idx)
-        return simple_scene([Node("stack", mesh=mesh, material=unlit((0.7, 0.3, 0.2), 0.5))])
-
-    r = renderer_factory("exact", method="presort_lf_et", method_overrides={"raster": "compute", "threshold": 0.9})
-    frames = [r.render(stack(2), 32, 32) for _ in range(3)]
-    orders = [f.stats["raster"]["compute"]["order"] for f in frames]
-    assert orders == ["depth", "back_to_front", "back_to_front"], orders
-    assert "culled 0.0%" in frames[1].stats["raster"]["compute"]["order_why"]
-    assert np.abs(frames[0].linear - frames[1].linear).max() * 255 < 0.5
-    deep = [r.render(stack(24), 32, 32) for _ in range(3)]
-    orders = [f.stats["raster"]["compute"]["order"] for f in deep]
-    # the first deep frame is still drawn back to front (its counts choose the next frame's order)
-    assert orders == ["back_to_front", "depth", "depth"], orders
-    assert deep[2].stats["fragments"]["early_termination_culled"] > 0
-    assert np.abs(deep[0].linear - deep[2].linear).max() * 255 < 0.5
-    fixed = renderer_factory(
-        "exact", method="presort_lf_et", method_overrides={"raster": "compute", "raster_order": "depth"}
-    )
-    assert [fixed.render(stack(2), 32, 32).stats["raster"]["compute"]["order"] for _ in range(2)] == ["depth"] * 2
-
-
 @pytest.mark.parametrize(
     ("method", "order", "mesh_order"),
     [

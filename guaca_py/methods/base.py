@@ -7,7 +7,6 @@ from typing import TYPE_CHECKING, ClassVar
 from ..errors import UnsupportedMethodError
 from ..pipeline.settings import NUMBER, Setting, unit_interval
 from ..raster.choice import RASTER_ORDER_SETTING, RASTER_SETTING
-from ..raster.depth_direction import DepthDirection
 
 if TYPE_CHECKING:
     from ..context import Capabilities
@@ -62,18 +61,7 @@ class TransparencyMethod:
         # the pool, where insertion walks and the composite read them: hairball_v2 presort_lf 161 ->
         # 28.4 ms, post_sort 330 (mesh order) -> 29.3, post_merge16 787 -> 93; the dragons lose
         # ~1 ms (post_sort 3.4 -> 4.4), Sponza is within 0.5 ms either way.
-        # With early termination, depth runs front to back while it culls, else back to front
-        # (raster/depth_direction.py, from the counted frames).
-        direction = self.depth_direction()
-        return direction.order if direction is not None else "tile"
-
-    def depth_direction(self) -> DepthDirection | None:
-        """The direction `auto` takes depth in for a method with early termination (None: the method has none)."""
-        if not getattr(self, "early_termination", False):
-            return None
-        if getattr(self, "_depth_direction", None) is None:
-            self._depth_direction = DepthDirection()
-        return self._depth_direction
+        return "depth" if getattr(self, "early_termination", False) else "tile"
 
     def __init__(self, settings: dict, caps: Capabilities):
         self.settings = settings

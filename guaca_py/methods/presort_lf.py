@@ -147,9 +147,9 @@ class PreSortLF(TransparencyMethod):
         are read instead, which needs no wait: an overflow they show grows the pool for the next
         frame and is reported, but the frame is not rendered again.
         """
-        c, staged, late = self._counters.latest(frame.late_counters)
+        c, staged_capacity, late = self._counters.latest(frame.late_counters)
         self._counts = c  # after_composite() reads these again
-        capacity, order = staged if late else (self.capacity, self.raster_order())
+        capacity = staged_capacity if late else self.capacity
         if late:
             frame.stats["fragments_of"] = "previous frame"
         requested = c["alloc"] - 1  # node 0 is the null node
@@ -174,10 +174,6 @@ class PreSortLF(TransparencyMethod):
             )
         if c["guard"]:
             frame.stats.setdefault("warnings", []).append(f"{c['guard']} insertions hit max_steps and were dropped")
-        direction = self.depth_direction()
-        if direction is not None and self.settings.get("raster_order", "auto") == "auto" and not c["overflow"]:
-            # an overflowed frame's counts are partial: it is drawn again, or the next one is counted
-            direction.observe(order, stored, c["et_dropped"] + c["et_culled"])
         auto = self.settings["budget_mb"] == "auto"
         grow = self.capacity < self.max_capacity(self._pixels)
         if c["overflow"] and auto and late:
@@ -198,7 +194,7 @@ class PreSortLF(TransparencyMethod):
     def after_composite(self, frame) -> None:
         """In a frame loop without read-back, set this frame's counters aside for the next frame's finish()."""
         if frame.late_counters:
-            self._counters.stage((self.capacity, self.raster_order()))
+            self._counters.stage(self.capacity)
 
     def read_counters(self, fresh: bool = False) -> dict[str, int]:
         """This frame's counters by name (one small GPU-side copy, then a read of the copy)."""

@@ -49,9 +49,8 @@ def auto_rule() -> str:
 def order_rule() -> str:
     """The `raster_order: auto` rule in words (printed by `guaca info`)."""
     return (
-        "depth for methods with early termination: front to back while it culls at least 5 % of the "
-        "fragments (measured front to back), back to front otherwise (raster/depth_direction.py); tile "
-        "(screen tiles, back to front within each) for the others"
+        "depth (front to back) for methods with early termination, tile (screen tiles, back to front "
+        "within each) for the others"
     )
 
 

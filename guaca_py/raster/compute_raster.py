@@ -130,7 +130,6 @@ class ComputeRasterizer:
         self._fresh = True  # the next draw starts a geometry pass: reset the state
         self._frame = None  # the frame being drawn (a new one always starts afresh)
         self._triangles = 0
-        self._frame_order: dict = {}  # the triangle order of the frame being drawn, and why
         self.regrown = 0
         self.tile = TILE  # tunable per renderer (raster_sweep.py --tile, --small-area; aa_cost.py --small-fragments)
         self.small_area = SMALL_AREA
@@ -270,7 +269,6 @@ class ComputeRasterizer:
         self._state.reset()
         ctx.memory_barrier()
         self._triangles = 0
-        self._frame_order = {"order": self.renderer.method.raster_order(), **self._order_reason()}
         self._mark("begin")  # stage profiling: what follows until the first draw's vertex stage is its set-up
 
     def _require_vertices(self, vertices: int) -> None:
@@ -293,12 +291,6 @@ class ComputeRasterizer:
         corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
         w = corners @ (frame.projection @ frame.view @ draw.world)[3]
         return float(max(w.min(), 0.0)), float(max(w.max(), 0.0))
-
-    def _order_reason(self) -> dict:
-        """Why `raster_order: auto` took its depth direction (methods with early termination)."""
-        m = self.renderer.method
-        direction = m.depth_direction() if m.settings.get("raster_order", "auto") == "auto" else None
-        return {"order_why": direction.reason} if direction is not None else {}
 
     def _front_to_back(self, order: str) -> bool:
         """Whether depth runs nearest first: for early termination, unless the order says back_to_front."""
@@ -430,7 +422,7 @@ class ComputeRasterizer:
         if frame.late_counters:
             self._state.stage()
         frame.stats.setdefault("raster", {})["compute"] = {
-            **self._frame_order,  # as drawn: the method's finish() may already have chosen the next frame's
+            "order": self.renderer.method.raster_order(),
             "triangles": self._triangles,
             "large_triangles": c["large_total"],
             "visible_triangles": c["visible_total"],
