@@ -3,11 +3,12 @@
 Usage: python benchmarks/aa_cost.py OUTDIR --scenes DIR [--scene-names NAME ...] [--size 1024]
                                    [--samples 1 4] [--raster auto hardware compute/mesh] [--paths default 32bit]
                                    [--warmup-s 1.5] [--frames 8] [--small-area 128 32]
-                                   [--small-fragments 8 1e9]
+                                   [--small-fragments 8 1e9] [--method presort_lf]
 For every scene, rasterizer (`transparency.raster`) and A-buffer insertion path (`default`: the
 device's, `32bit`: 64-bit atomics switched off, so the CAS-linked lists), the default pipeline at
 each sample count: per-pass GPU medians after a warm-up at the maximum SM clock (paper_table.py's
-timing), stored fragments, and each count's cost against 1 sample. Writes OUTDIR/aa_cost.{json,md}.
+timing), stored fragments, and each count's cost against 1 sample (--method: another transparency
+method in that pipeline). Writes OUTDIR/aa_cost.{json,md}.
 With GUACA_RASTER_STAGES=1 in the environment it adds the compute rasterizer's time per stage
 (vertex, order, setup, bin, fine; the last frame of each row, which waits for its timestamps).
 --small-area and --small-fragments take the compute rasterizer's one-thread bounds (a triangle
@@ -58,6 +59,7 @@ def run(args) -> list[dict]:
                         r = Renderer(
                             with_samples(load_pipeline("default"), n),
                             ctx=ctx,
+                            method=args.method,
                             method_overrides=overrides,
                             restore_host_state=False,
                         )
@@ -133,6 +135,7 @@ def main(argv=None) -> int:
     ap.add_argument("--scene-names", nargs="*", default=["dragons"])
     ap.add_argument("--size", type=int, default=1024)
     ap.add_argument("--samples", nargs="*", type=int, default=[1, 4])
+    ap.add_argument("--method", default=None, help="transparency method (default: the default pipeline's)")
     ap.add_argument(
         "--raster",
         nargs="*",

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Where the dragons' 4-sample time goes: the anti-aliasing cost (benchmarks/aa_cost.py, stage times on)
 # of the default frame, of the same frame without A-buffer insertion (GUACA_SKIP_INSERTION=1: the
-# rasterizer's own cost) and of the back_to_front triangle order, at 1 and 4 samples:
+# rasterizer's own cost) and of presort_lf (no early termination: its depth order runs back to front,
+# its `auto` order is by screen tile) in both orders, at 1 and 4 samples:
 #   source .gl/gpu-env.sh && bash benchmarks/aa_variants.sh "$OUT"      # ~1 min on the H100
 # SCENES="dragons hairball_v1" picks other scenes of .scenes/.
 set -uo pipefail
@@ -26,4 +27,4 @@ run() {  # name, VAR=value..., --, aa_cost.py arguments
 }
 run base GUACA_SKIP_INSERTION=0 -- --samples 1 4
 run skip_insertion GUACA_SKIP_INSERTION=1 -- --samples 1 4
-run back_to_front GUACA_SKIP_INSERTION=0 -- --samples 1 4 --raster auto/back_to_front
+run presort_lf GUACA_SKIP_INSERTION=0 -- --samples 1 4 --method presort_lf --raster auto auto/depth

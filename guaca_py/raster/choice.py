@@ -20,10 +20,9 @@ RASTER_ORDER_SETTING = Setting(
     (str,),
     "auto",
     "order in which the compute rasterizer takes a draw's triangles: 'depth' (front to back with early "
-    "termination, back to front without), 'back_to_front' (by depth, farthest first, whatever the method: "
-    "early termination then culls nothing, each insertion stops near its list's head), 'mesh' (index "
-    "order), 'tile' (screen tiles, by depth within each) or 'auto' (the method's; docs/raster.md)",
-    choices=("auto", "depth", "back_to_front", "mesh", "tile"),
+    "termination, back to front without), 'mesh' (index order), 'tile' (screen tiles, by depth within "
+    "each) or 'auto' (the method's; docs/raster.md)",
+    choices=("auto", "depth", "mesh", "tile"),
 )
 
 # `auto` takes the compute rasterizer for a draw whose visible triangles cover at most this many
