@@ -23,10 +23,11 @@
 #    none at 1 and 4 samples on the dragons, Sponza v2 and hairball_v2 (~7 min): what this round
 #    could not run for lack of device time
 # j1: the suite and Table 1 with raster: auto (~5 min); j2: the compute rasterizer's stages at 1 and 4
-#    samples, every scene at 1 and 4 samples in the default and the back_to_front order, the dragons'
-#    edge error at 1 and 4 samples, the area bound through 8, 16 px² and none (~5 min)
-# k1: Table 1 and the anti-aliasing cost with stage times on four scenes, after `auto` took its depth
-#    direction from the counted frames (~3 min); k2: the suite and the dragons' temporal stability (~4 min)
+#    samples, the dragons at 1 and 4 samples (at 75fbdc5 also in a back_to_front order, since taken
+#    out), the dragons' edge error at 1 and 4 samples, the area bound through 8, 16 px² and none (~5 min)
+# k1: Table 1 and the anti-aliasing cost with stage times on four scenes (~3 min); k2: the suite and the
+#    dragons' temporal stability (~4 min); both first ran at 82f719b, with a rule for `auto`'s depth
+#    direction that was reverted after (benchmarks/results/h100/adaptive_order_1c671c8/)
 # order: the suite, then the compute rasterizer's triangle orders (depth, mesh, tile) per method and
 #    scene (benchmarks/results/h100/raster_order/orders.md)
 set -uo pipefail
@@ -117,9 +118,8 @@ elif [[ $part == j1 ]]; then
   table 3
 elif [[ $part == j2 ]]; then
   stages
-  # every scene at 1 and 4 samples in the default order and back to front
-  timeout 200 python3 benchmarks/aa_cost.py "$work/aa_orders" --scenes .scenes --samples 1 4 \
-    --raster auto auto/back_to_front 2>&1 | tail -1
+  # the dragons at 1 and 4 samples (at 75fbdc5 also with --raster auto/back_to_front, an order taken out since)
+  timeout 200 python3 benchmarks/aa_cost.py "$work/aa_orders" --scenes .scenes --samples 1 4 --raster auto 2>&1 | tail -1
   tail -22 "$work/aa_orders/aa_cost.md" | head -22
   pack
   # the dragons' edge error at 1 and 4 samples against the 8x8-supersampled exact frame
