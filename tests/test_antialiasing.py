@@ -16,7 +16,7 @@ from guaca_py.antialiasing import device_samples, method_refusal, with_samples
 from guaca_py.errors import ConfigError, UnsupportedMethodError
 from guaca_py.methods import method_class, method_ids
 from guaca_py.pipeline.config import load_pipeline, pipeline_from_text
-from guaca_py.scene.graph import Node, Scene, Transform
+from guaca_py.scene.graph import MeshData, Node, Scene, Transform
 
 EXACT = load_pipeline("exact")
 ONE_PASS_ABUFFER = ("presort_lf", "presort_lf_et", "presort_lf_merge2_et", "presort_cs_et", "post_sort", "post_merge16")
@@ -221,6 +221,45 @@ def test_compute_raster_makes_the_hardware_coverage(renderer_factory):
     ]
     # a sample within rounding of an edge may fall on the other side (llvmpipe: 2 pixels of 4096)
     assert np.mean(same) >= 0.995, (np.mean(same), len(same) - sum(same))
+
+
+def test_compute_raster_clips_each_sample_at_near_and_far(renderer_factory):
+    """Quads through the far and the near plane, every corner in front of the eye (the fixed-point
+    path, which then tests each sample's depth): the compute masks and image are the hardware's."""
+    hw = renderer_factory(with_samples(EXACT, 4), method="presort_lf_et", method_overrides={"raster": "hardware"})
+    cs = renderer_factory(with_samples(EXACT, 4), method="presort_lf_et", method_overrides={"raster": "compute"})
+    if hw.samples != 4:
+        pytest.skip(f"the device renders {hw.samples} samples for 4")
+
+    def quad(name, corners, color) -> Node:
+        # two triangles over four explicit corners, all in front of the eye (z < 5): fixed point
+        pos = np.array(corners, dtype=np.float32)
+        n = np.cross(pos[1] - pos[0], pos[2] - pos[0])
+        normals = np.tile(n / np.linalg.norm(n), (4, 1)).astype(np.float32)
+        idx = np.array([0, 1, 2, 0, 2, 3], dtype=np.uint32)
+        return Node(name, Transform(), MeshData(pos, normals, np.zeros((4, 2), np.float32), idx), unlit(color, 0.5))
+
+    def scene(near: float, far: float) -> Scene:
+        # view distances (eye at z = 5): the far quad 6-17, its depth changing along a diagonal of
+        # the screen; the near quad 0.4-3
+        nodes = [
+            quad("far", [(-2, -1.5, -1), (2, -1.5, -6), (2, 1.5, -12), (-2, 1.5, -7)], (0.9, 0.3, 0.1)),
+            quad("near", [(-0.4, -0.4, 4.6), (0.4, -0.4, 4.2), (0.4, 0.4, 2.0), (-0.4, 0.4, 3.0)], (0.1, 0.8, 0.3)),
+        ]
+        camera = dataclasses.replace(_test_camera(), near=near, far=far)
+        return Scene(camera=camera, background=(0.05, 0.08, 0.12), nodes=nodes)
+
+    clipped, whole = scene(1.0, 9.0), scene(0.01, 100.0)
+    a, b = hw.render(clipped, 64, 64), cs.render(clipped, 64, 64)
+    masks_cs = _coverage_by_primitive(cs.method, 64 * 64)
+    masks_hw = _coverage_by_primitive(hw.method, 64 * 64)
+    stored = b.stats["fragments"]["stored"]
+    # both planes cut fragments: at 4 samples only the per-sample depth test clips in fixed point
+    assert stored < 0.9 * cs.render(whole, 64, 64).stats["fragments"]["stored"]
+    err = np.abs(a.linear - b.linear).max(axis=2) * 255
+    assert np.mean(err <= 1.0) > 0.98, np.mean(err <= 1.0)
+    same = [x == y for x, y in zip(masks_hw, masks_cs)]
+    assert np.mean(same) >= 0.99, (np.mean(same), len(same) - sum(same))
 
 
 def test_sample_counts_validated(gl_context):
