@@ -4,7 +4,7 @@
 # rasterizer's own cost) and of presort_lf (no early termination: its depth order runs back to front,
 # its `auto` order is by screen tile) in both orders, at 1 and 4 samples:
 #   source .gl/gpu-env.sh && bash benchmarks/aa_variants.sh "$OUT"      # ~1 min on the H100
-# SCENES="dragons hairball_v1" picks other scenes of .scenes/.
+# SCENES="dragons hairball_v1" picks other scenes of .scenes/; ONLY="base skip_insertion" runs only those variants.
 set -uo pipefail
 out=${1:-$OUT}
 work=/tmp/aa_variants
