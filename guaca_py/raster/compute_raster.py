@@ -84,18 +84,17 @@ _MAX_GROUPS_X = 65535  # the GL minimum of GL_MAX_COMPUTE_WORK_GROUP_COUNT; grid
 
 
 _TOO_BIG = "draw this mesh with transparency.raster: hardware, or split it (GUACA_MAX_BUFFER_MB sets the rule)"
-_bounds_cache: dict[int, tuple] = {}  # id(mesh) -> (weak mesh, (min, max))
+_corners_cache: dict[int, tuple] = {}  # id(mesh) -> (weak mesh, corners)
 
 
-def _bounds(mesh) -> tuple[np.ndarray, np.ndarray]:
-    """The mesh's object-space bounds, computed once per mesh."""
-    hit = _bounds_cache.get(id(mesh))
+def _bound_corners(mesh) -> np.ndarray:
+    """The 8 corners of the mesh's object-space bounds as homogeneous points (8, 4), computed once per mesh."""
+    hit = _corners_cache.get(id(mesh))
     if hit is None or hit[0]() is not mesh:
         key = id(mesh)
-        hit = _bounds_cache[key] = (
-            weakref.ref(mesh, lambda _ref, key=key: _bounds_cache.pop(key, None)),
-            tuple(np.asarray(b, dtype=np.float64) for b in mesh.bounds()),
-        )
+        lo, hi = (np.asarray(b, dtype=np.float64) for b in mesh.bounds())
+        corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        hit = _corners_cache[key] = (weakref.ref(mesh, lambda _ref, key=key: _corners_cache.pop(key, None)), corners)
     return hit[1]
 
 
@@ -287,9 +286,7 @@ class ComputeRasterizer:
 
     def _depth_range(self, frame, draw) -> tuple[float, float]:
         """Nearest and farthest view depth of the draw's bounding box corners (clip w), for the order."""
-        lo, hi = _bounds(draw.mesh)
-        corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-        w = corners @ (frame.projection @ frame.view @ draw.world)[3]
+        w = _bound_corners(draw.mesh) @ (frame.projection @ frame.view @ draw.world)[3]
         return float(max(w.min(), 0.0)), float(max(w.max(), 0.0))
 
     def _front_to_back(self) -> bool:
@@ -309,16 +306,19 @@ class ComputeRasterizer:
         self._order.bind_to_storage_buffer(15)
         self._keys.bind_to_storage_buffer(9)  # the mesh's vertices there served the vertex stage only
         order = self.renderer.method.raster_order()
-        order_kernel["gua_tri_count"] = draw.mesh.triangle_count
-        order_kernel["gua_depth_range"] = depth_range
-        order_kernel["gua_back_to_front"] = not self._front_to_back()
-        order_kernel["gua_mesh_order"] = order == "mesh"
-        order_kernel["gua_tile_order"] = order == "tile"
-        order_kernel["gua_resolution"] = (frame.width, frame.height)
-        order_kernel["gua_sample_span"] = span
+        for name, value in (
+            ("gua_tri_count", draw.mesh.triangle_count),
+            ("gua_depth_range", depth_range),
+            ("gua_back_to_front", not self._front_to_back()),
+            ("gua_mesh_order", order == "mesh"),
+            ("gua_tile_order", order == "tile"),
+            ("gua_resolution", (frame.width, frame.height)),
+            ("gua_sample_span", span),
+        ):
+            set_uniform(order_kernel, name, value)
 
         def mode(m: int, items: int) -> None:
-            order_kernel["gua_order_mode"] = m
+            set_uniform(order_kernel, "gua_order_mode", m)
             order_kernel.run(*_grid(items))
             ctx.memory_barrier()
 
@@ -370,7 +370,7 @@ class ComputeRasterizer:
             self._jobs.bind_to_storage_buffer(13)
             frame.set_frame_uniforms(vert)
             d.write_transform(vert)
-            vert["gua_vertex_count"] = len(d.mesh.positions)
+            set_uniform(vert, "gua_vertex_count", len(d.mesh.positions))
             r._set_material_uniforms(vert, d)
             self._mark("between_draws")  # from the last stage (or the set-up) to this draw's start
             vert.run(*_grid(len(d.mesh.positions)))
@@ -392,11 +392,11 @@ class ComputeRasterizer:
                 r._set_material_uniforms(prog, d)
                 if per_program is not None:
                     per_program(prog)
-            setup["gua_large_capacity"] = self.large_capacity
+            set_uniform(setup, "gua_large_capacity", self.large_capacity)
             setup.run_indirect(self._state.buffer, STATE_WORDS.index("setup_x") * 4)
             ctx.memory_barrier()
             self._mark("setup")
-            binner["gua_job_capacity"] = self.job_capacity
+            set_uniform(binner, "gua_job_capacity", self.job_capacity)
             self._queued_stage(args, 1, self.large_capacity, binner, "bin_x")
             self._mark("bin")
             self._queued_stage(args, 2, self.job_capacity, fine, "fine_x")
@@ -410,7 +410,8 @@ class ComputeRasterizer:
 
     def _queued_stage(self, args, mode: int, capacity: int, prog, dispatch_word: str) -> None:
         """Clamp the queue the last stage filled to `capacity` (args kernel `mode`), then run `prog` over it."""
-        args["gua_args_mode"], args["gua_capacity"] = mode, capacity
+        set_uniform(args, "gua_args_mode", mode)
+        set_uniform(args, "gua_capacity", capacity)
         args.run(1)
         self.ctx.memory_barrier()
         prog.run_indirect(self._state.buffer, STATE_WORDS.index(dispatch_word) * 4)

@@ -148,8 +148,9 @@ def set_uniform(prog, name: str, value) -> bool:
     A GL program keeps its uniforms between draws and frames, so a value this helper already gave
     the program is not written again: a static scene's camera and materials need no writes after
     the first frame, where each write costs moderngl several Python calls, thousands a frame in
-    scenes of many draws. Values are bytes, numbers or tuples (compared by equality). guaca writes
-    every uniform through here, so what it remembers is what the program holds.
+    scenes of many draws. Values are bytes, numbers or tuples (compared by equality). What it
+    remembers is what the program holds only if a name is never written around it: the programs a
+    frame draws or dispatches per draw write every uniform through here.
     """
     if name not in uniform_names(prog):
         return False
