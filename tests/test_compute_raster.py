@@ -570,9 +570,7 @@ def test_a_triangles_fragments_get_neighbouring_nodes(renderer_factory):
     first = np.r_[True, prim[1:] != prim[:-1]]
     span = np.maximum.reduceat(nodes, np.flatnonzero(first)) - nodes[first] + 1
     count = np.diff(np.r_[np.flatnonzero(first), len(nodes)])
-    assert (
-        frame.stats["raster"]["compute"]["large_triangles"] == frame.stats["raster"]["compute"]["medium_triangles"] == 0
-    )
+    assert frame.stats["raster"]["compute"]["large_triangles"] == frame.stats["raster"]["compute"]["medium_triangles"] == 0
     assert len(count) > 1000 and (span == count).all()
 
 
