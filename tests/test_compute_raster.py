@@ -143,8 +143,7 @@ def test_shared_edges_cover_every_pixel_once(renderer_factory, jitter):
     frame = r.render(simple_scene(nodes), w, w)
     assert frame.stats["fragments"]["stored"] == 3 * w * w
     stats = frame.stats["raster"]["compute"]
-    shared = stats["medium_triangles"] + stats["large_triangles"]
-    assert shared < stats["triangles"] // 2, stats  # the one-thread path did most
+    assert stats["large_triangles"] < stats["triangles"] // 2, stats  # the small-triangle path did most
     ref, mask, layer_count = _REFS.of("plain3", simple_scene(plain), w, w)
     assert layer_count.min() == 3
     assert compare(frame.image, ref, mask)["max_abs_255"] <= 2.0
@@ -449,10 +448,10 @@ def test_small_random_triangles_match_hardware_coverage(renderer_factory, area):
     st = c.stats["raster"]["compute"]
     # slivers of any area can have large boxes, and under perspective (corners at different
     # depths) screen areas beyond SMALL_FRAGMENTS; at 3 px² most go through the one-thread path,
-    # at 40 px² nearly all through the setup stage's workgroup, some through tiles: all three paths ran
-    shared = st["medium_triangles"] + st["large_triangles"]
-    assert (0 < shared < 0.15 * n) if area < 20 else (shared > 0.9 * n), st
-    assert 0 < st["large_triangles"] < st["medium_triangles"] and st["tile_jobs"] > 0, st
+    # at 40 px² nearly all through a workgroup each, some through tiles: all three paths ran
+    large = st["large_triangles"]
+    assert (0 < large < 0.15 * n) if area < 20 else (large > 0.9 * n), st
+    assert 0 < st["tiled_triangles"] < st["large_triangles"] and st["tile_jobs"] > 0, st
     assert differing(c.image, h.image).mean() < 0.05
 
 
@@ -570,7 +569,7 @@ def test_a_triangles_fragments_get_neighbouring_nodes(renderer_factory):
     first = np.r_[True, prim[1:] != prim[:-1]]
     span = np.maximum.reduceat(nodes, np.flatnonzero(first)) - nodes[first] + 1
     count = np.diff(np.r_[np.flatnonzero(first), len(nodes)])
-    assert frame.stats["raster"]["compute"]["large_triangles"] == frame.stats["raster"]["compute"]["medium_triangles"] == 0
+    assert frame.stats["raster"]["compute"]["large_triangles"] == 0
     assert len(count) > 1000 and (span == count).all()
 
 
@@ -598,27 +597,6 @@ def test_triangles_are_taken_in_depth_order(renderer_factory, method):
     assert (steps <= 0).all() if method == "presort_lf_et" else (steps >= 0).all(), layer
     if r.caps.software and method == "presort_lf_et":  # llvmpipe runs workgroups in order
         assert frame.stats["fragments"]["stored"] <= 6 * 32 * 32, frame.stats["fragments"]
-
-
-def test_workgroup_triangles_keep_their_place_in_the_depth_order(renderer_factory):
-    # one mesh: a far plane of ~2 px² triangles listed first, a near plane of ~37 px² ones (the
-    # workgroup's, past SMALL_FRAGMENTS) that saturates every pixel. Front to back, the near ones
-    # go in first and early termination culls the far layer. (A queue for the workgroup's
-    # triangles, run after the whole setup stage, put every small far one in before them: both
-    # layers were stored.)
-    w = 64
-    far, near = tessellated_plane(46, 8.0, 0.0), tessellated_plane(12, 6.0, 0.0)
-    pos = np.concatenate([far.positions + np.float32([0, 0, -1]), near.positions + np.float32([0, 0, 1])])
-    idx = np.concatenate([far.indices, near.indices + len(far.positions)]).astype(np.uint32)
-    mesh = MeshData(pos, np.tile(np.float32([0, 0, 1]), (len(pos), 1)), np.zeros((len(pos), 2), np.float32), idx)
-    scene = simple_scene([Node("two", mesh=mesh, material=unlit((0.7, 0.3, 0.2), 0.95))])
-    overrides = {"raster": "compute", "threshold": 0.9, "raster_order": "depth"}
-    r = renderer_factory("exact", method="presort_lf_et", method_overrides=overrides)
-    frame = r.render(scene, w, w)
-    st, frags = frame.stats["raster"]["compute"], frame.stats["fragments"]
-    assert st["medium_triangles"] > 100 and st["large_triangles"] == 0, st
-    if r.caps.software:  # llvmpipe runs workgroups in order (a GPU runs many at once)
-        assert frags["stored"] <= 1.25 * w * w and frags["et_culled"] + frags["et_dropped"] > 0.7 * w * w, frags
 
 
 @pytest.mark.parametrize(
@@ -758,7 +736,7 @@ def test_triangles_of_many_fragments_go_to_a_workgroup(renderer_factory):
     )
     by_box.raster.compute.small_fragments = 1e9
     a, b = by_area.render(scene, 64, 64), by_box.render(scene, 64, 64)
-    assert a.stats["raster"]["compute"]["medium_triangles"] > 0.9 * 400
-    assert b.stats["raster"]["compute"]["medium_triangles"] == b.stats["raster"]["compute"]["large_triangles"] == 0
+    assert a.stats["raster"]["compute"]["large_triangles"] > 0.9 * 400
+    assert b.stats["raster"]["compute"]["large_triangles"] == 0
     assert a.stats["fragments"]["stored"] == b.stats["fragments"]["stored"] > 400 * 25
     assert (a.image == b.image).all()

@@ -7,10 +7,9 @@ what transparent fragments need (no depth buffer, no ordering: the A-buffer sort
 1b. order   a bucket sort of the triangles in the frustum by view depth: front to back for
             methods with early termination, back to front for the others (order.comp.j2);
 2. setup    one thread per triangle, in that order: setup; a triangle whose candidate box holds at most
-            SMALL_AREA pixels (and which covers at most SMALL_FRAGMENTS px²) is rasterized by that
-            thread, one whose box holds at most MEDIUM_AREA pixels by the thread's whole workgroup,
-            a larger one is queued;
-3. bin      one workgroup per queued triangle: a (triangle, tile) job per TILE² tile it may cover;
+            SMALL_AREA pixels is rasterized by that thread, a larger one is queued;
+3. bin      one workgroup per queued triangle: rasterizes it when its box holds at most
+            MEDIUM_AREA pixels, else makes a (triangle, tile) job per TILE² tile it may cover;
 4. fine     one workgroup per job, one thread per pixel.
 
 Every covered pixel runs the material's visibility methods and the method's gua_submit_at()
@@ -54,7 +53,8 @@ STATE_WORDS = (
     "jobs_total",
     "jobs_peak",
     "jobs_dropped",
-    "medium_total",
+    "tiled",
+    "tiled_total",
     "visible",
     "visible_total",
     "setup_x",
@@ -63,7 +63,7 @@ STATE_WORDS = (
 )
 TILE = 8  # tile edge in pixels of the large-triangle path (one 64-thread workgroup per job, as L&K's fine raster)
 SMALL_AREA = 128  # candidate boxes up to this many pixels may be rasterized by one thread
-# A triangle covering more than SMALL_FRAGMENTS px² goes to the workgroup even in a small
+# A triangle covering more than SMALL_FRAGMENTS px² goes to a workgroup (bin stage) even in a small
 # box: one thread would shade its many fragments one after another and hold its SIMD group back,
 # a workgroup shades them side by side. The box alone is no measure: a sliver's box is large and its fragments few (hairball_v1: boxes of
 # ~18 px, 5 px² on average, fastest on one thread), a close-up strand's box and area both large
@@ -72,7 +72,7 @@ SMALL_AREA = 128  # candidate boxes up to this many pixels may be rasterized by 
 # hairball_v1 as they were; 8 px² gained more on those two but sent a third of hairball_v1's
 # strands out of their depth order (early termination then culled less: 4.6 -> 6.0 ms).
 SMALL_FRAGMENTS = 16.0
-MEDIUM_AREA = 1024  # larger boxes up to this many pixels by the setup stage's workgroup together, without tiles
+MEDIUM_AREA = 1024  # larger boxes up to this many pixels by one 64-thread workgroup, without tiles
 DEPTH_UNIT = 7  # texture unit of the G-buffer depth (units 8+ hold material textures)
 VERTEX_RECORD_BYTES = 48  # clip position, world position + u, normal + v
 MAX_REGROW = 2  # re-renders one frame may take to grow the queue or the job list
@@ -432,7 +432,7 @@ class ComputeRasterizer:
             "triangles": self._triangles,
             "large_triangles": c["large_total"],
             "visible_triangles": c["visible_total"],
-            "medium_triangles": c["medium_total"],
+            "tiled_triangles": c["tiled_total"],
             "tile_jobs": c["jobs_total"],
             "large_dropped": c["large_dropped"],
             "tile_jobs_dropped": c["jobs_dropped"],
