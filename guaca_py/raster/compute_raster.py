@@ -211,6 +211,7 @@ class ComputeRasterizer:
                     **self._raster_vars(),
                     **mvars,
                     compute_raster=True,
+                    raster_stage=stage,  # the triangle record's layout is chosen per kernel
                     frag_xy="gua_frag_xy",
                     tc_derivatives=cm.tc_derivatives,
                     visibility_methods="".join(
