@@ -343,8 +343,8 @@ class ComputeRasterizer:
             self._begin(frame, draws)
             self._fresh, self._frame = False, frame
         ctx, r = self.ctx, self.renderer
-        frame.resources["gbuffer"]["depth"].use(location=DEPTH_UNIT)
-        any_opaque = any(not d.transparent for d in frame.draws)
+        gbuffer = frame.resources["gbuffer"]
+        gbuffer["depth"].use(location=DEPTH_UNIT)
         span = sample_span(r.sample_positions)
         sample_pos = tuple(tuple(p) for p in r.sample_positions)
         args = self._kernel("raster/args.comp.j2")
@@ -382,7 +382,7 @@ class ComputeRasterizer:
             draw_values = {
                 **uniforms,
                 "gua_draw_index": d.index,
-                "gua_any_opaque": any_opaque,
+                "gua_any_opaque": gbuffer["has_opaque"],  # the geometry pass's own answer
                 "gua_sample_pos": sample_pos,  # coverage at the hardware's sample points
                 "gua_sample_span": span,
             }
