@@ -1,7 +1,7 @@
 """Where a frame loop's CPU time goes: cProfile of renders without read-back, beside GPU time.
 
 Usage: python benchmarks/loop_profile.py OUTDIR --scenes DIR [--scene-names NAME ...] [--method ID]
-                                         [--size 1024] [--frames 24]
+                                         [--size 1024] [--frames 24] [--loops 3]
 
 For each scene: paper_table.py's timing (warm-up, per-pass GPU medians at the maximum SM clock, and
 the wall time per frame of a loop of renders without read-back and without timers, as an
@@ -16,7 +16,9 @@ import argparse
 import cProfile
 import io
 import pstats
+import statistics
 import sys
+import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -29,6 +31,22 @@ from guaca_py.context import create_context  # noqa: E402
 from guaca_py.scene.loader import load_scene  # noqa: E402
 
 
+def submit_alone_ms(renderer, scene, size: int, frames: int) -> list[float]:
+    """Wall time of render() calls each started on an idle GPU: what the CPU spends submitting a frame.
+
+    In a loop the driver's calling thread spins while the GPU is behind, so neither the loop's wall
+    time nor its CPU time tells a CPU-paced loop from a GPU-paced one; a frame submitted alone does.
+    """
+    times = []
+    for _ in range(frames):
+        renderer.ctx.finish()
+        t0 = time.perf_counter()
+        renderer.render(scene, size, size, read_back=False, stats=False)
+        times.append((time.perf_counter() - t0) * 1e3)
+    renderer.ctx.finish()
+    return times
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("out", type=Path)
@@ -37,6 +55,7 @@ def main() -> int:
     ap.add_argument("--method", default="presort_lf_et")
     ap.add_argument("--size", type=int, default=1024)
     ap.add_argument("--frames", type=int, default=24)
+    ap.add_argument("--loops", type=int, default=3, help="loops timed again after the profiled one")
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     ctx, _ = create_context()
@@ -53,11 +72,27 @@ def main() -> int:
         prof.disable()
         text = io.StringIO()
         pstats.Stats(prof, stream=text).sort_stats("tottime").print_stats(25)
+        pstats.Stats(prof, stream=text).sort_stats("cumulative").print_stats(40)
+        loops = [loop_wall_ms(r, scene, args.size, args.frames, stats=False) for _ in range(args.loops)]
+        alone = submit_alone_ms(r, scene, args.size, args.frames)
         lines += [
             f"## {name}",
             "",
             f"GPU total (median of 8 timed frames, SM clock {clock} MHz): {gpu:.3f} ms; loop wall: "
             f"{wall:.3f} ms per frame (+{wall - gpu:.3f}); under cProfile: {profiled:.3f} ms",
+            "",
+            f"CPU cost of a frame alone (render() called on an idle GPU, no wait inside; median of {args.frames}): "
+            f"**{statistics.median(alone):.3f} ms** (min {min(alone):.3f}, max {max(alone):.3f})",
+            "",
+            "Loops again, ms per frame (wall; inside render(); CPU time of the process, and of the calling thread; GPU time of the loop's "
+            "frames from timestamps at their ends; GPU idle between frames):",
+            "",
+            "| wall | submit | cpu | thread cpu | gpu | idle |",
+            "|---|---|---|---|---|---|",
+            *(
+                f"| {x['wall']:.3f} | {x['submit']:.3f} | {x['cpu']:.3f} | {x['thread_cpu']:.3f} | {x.get('gpu', 0):.3f} | {x.get('idle', 0):.3f} |"
+                for x in loops
+            ),
             "",
             "```",
             text.getvalue().strip(),

@@ -89,20 +89,22 @@ def time_frames(renderer, scene, size: int, warmup_s: float, frames: int, warmup
 def loop_wall_ms(renderer, scene, size: int, frames: int, stats: bool) -> dict:
     """Per frame of `frames` renders without read-back: wall time from an idle GPU to the last one's end,
     wall time inside render() calls, and CPU time of this process (render() taking as long as the
-    GPU while the CPU idles means it waited for the GPU: a sync in the frame)."""
+    GPU while the CPU idles means it waited for the GPU: a sync in the frame; `thread_cpu`: the calling
+    thread's CPU time alone, without the driver's own threads)."""
     marks = Timestamps()  # GPU timestamps before and after each frame: read after the loop, no sync in it
     renderer.ctx.finish()
-    t0, c0 = time.perf_counter(), time.process_time()
+    t0, c0, h0 = time.perf_counter(), time.process_time(), time.thread_time()
     for _ in range(frames):
         marks.mark("idle")  # span from the previous frame's end: the GPU had nothing to run
         renderer.render(scene, size, size, read_back=False, stats=stats)
         marks.mark("frame")
-    t1, c1 = time.perf_counter(), time.process_time()
+    t1, c1, h1 = time.perf_counter(), time.process_time(), time.thread_time()
     renderer.ctx.finish()
     t2 = time.perf_counter()
     spans = marks.spans_ms()
     marks.release()
     row = {"wall": (t2 - t0) * 1e3 / frames, "submit": (t1 - t0) * 1e3 / frames, "cpu": (c1 - c0) * 1e3 / frames}
+    row["thread_cpu"] = (h1 - h0) * 1e3 / frames  # the calling thread alone (Python and the GL calls it makes)
     if "frame" in spans:  # GPU time of the loop's own frames, and the GPU's idle time between them
         row["gpu"] = spans["frame"] / frames
         row["idle"] = spans.get("idle", 0.0) / max(1, frames - 1)
