@@ -161,12 +161,16 @@ class CounterBlock:
         # raw GL entry points load or the driver maps no persistent buffer
         self._late = _fenced_or_none(size) or _BufferCopies(ctx, size)
         self._initial_values: tuple[int, ...] | None = None
+        self._zeros = (0,) * len(self.names)
 
     def reset(self, **values: int) -> None:
         """Set every counter to 0, or to the value given by name, before the GPU uses them."""
-        words = tuple(int(values.pop(n, 0)) for n in self.names)
         if values:
-            raise KeyError(f"unknown counters: {', '.join(values)}")
+            words = tuple(int(values.pop(n, 0)) for n in self.names)
+            if values:
+                raise KeyError(f"unknown counters: {', '.join(values)}")
+        else:  # every counter 0: the common case, once a frame per block
+            words = self._zeros
         if direct_cpu_access():
             self.buffer.write(np.array(words, dtype=np.uint32).tobytes())
             return

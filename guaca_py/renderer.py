@@ -26,7 +26,7 @@ from .pipeline.settings import resolve_settings
 from .present import Presenter
 from .raster import RasterRouter
 from .scene.graph import Scene
-from .shaders import ShaderLibrary, SourceMap, set_uniform, uniform_names
+from .shaders import ShaderLibrary, SourceMap, set_uniform, set_uniforms
 
 _FIRST_RESOURCES = {"draw_list", "lights"}
 _TEXTURE_UNIT_BASE = 8  # units below are used by the passes' own inputs
@@ -213,20 +213,25 @@ class Renderer:
             label=f"{label} ({mat.path})",
         )
 
-    def _set_material_uniforms(self, prog, draw) -> None:
+    def material_uniforms(self, draw) -> list[tuple[str, object]]:
+        """The draw's material uniforms as set_uniform() takes them; binds its textures to their units now.
+
+        Every sampler gets its own unit whether or not a given program reads it, so the values hold
+        for every program of the material (the compute rasterizer sets them on four kernels).
+        """
         unit = _TEXTURE_UNIT_BASE
+        out = []
         for name, spec in draw.material.uniforms.items():
-            if name not in uniform_names(prog):
-                continue
             value = draw.values[name]
             if spec.type == "sampler2D":
                 self.textures.get(value, draw.material.path.parent).use(location=unit)
-                set_uniform(prog, name, unit)
-                unit += 1
+                value, unit = unit, unit + 1
             elif spec.type == "mat4":
-                set_uniform(prog, name, mat_bytes(np.asarray(value, dtype=np.float64).reshape(4, 4)))
-            else:
-                set_uniform(prog, name, value if not isinstance(value, list) else tuple(value))
+                value = mat_bytes(np.asarray(value, dtype=np.float64).reshape(4, 4))
+            elif isinstance(value, list):
+                value = tuple(value)
+            out.append((name, value))
+        return out
 
     def draw_list(self, frame, draws, transparent: bool, uniforms: dict | None = None, per_program=None) -> None:
         """Draw `draws` with their (opaque or transparent) programs and the given extra uniforms."""
@@ -247,7 +252,7 @@ class Renderer:
             d.write_transform(prog)
             set_uniform(prog, "gua_draw_index", d.index)
             if switched or d.values is not last_values:  # the same instance as the draw before is all set
-                self._set_material_uniforms(prog, d)
+                set_uniforms(prog, self.material_uniforms(d))
                 last_values = d.values
             self.meshes.vao(d.mesh, prog).render(moderngl.TRIANGLES)
 

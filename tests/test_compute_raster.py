@@ -746,3 +746,32 @@ def test_triangles_of_many_fragments_go_to_a_workgroup(renderer_factory):
     assert b.stats["raster"]["compute"]["large_triangles"] == 0
     assert a.stats["fragments"]["stored"] == b.stats["fragments"]["stored"] > 400 * 25
     assert (a.image == b.image).all()
+
+
+def test_a_repeated_frame_sends_only_what_differs_between_draws(renderer_factory, monkeypatch):
+    # The CPU cost of a frame paces an application's loop on a fast GPU: a frame of an unchanged
+    # scene must not write again what its kernels already hold (camera, per-call values), only the
+    # values that differ from one draw to the next (transform, index, material instance)
+    import moderngl
+
+    r = renderer_factory("exact", method="presort_lf_et", method_overrides={"raster": "compute"})
+    n = 6
+    scene = layered_quads_scene(n_layers=n, order="shuffled", seed=2)
+    for _ in range(2):
+        first = r.render(scene, 64, 64)
+    written = []
+    write = moderngl.Uniform.write  # the `value` setter writes through it too
+    monkeypatch.setattr(moderngl.Uniform, "write", lambda u, data: (written.append(u.name), write(u, data))[1])
+    again = r.render(scene, 64, 64)
+    assert np.array_equal(again.image, first.image)
+    assert again.stats["raster"]["compute_draws"] == n
+    camera = {"gua_view_matrix", "gua_projection_matrix", "gua_inverse_view_projection", "gua_camera_position"}
+    assert not camera & set(written), sorted(set(written))
+    # per draw: its transform (2), index and material values on the three rasterizing kernels (3 + 3 per
+    # value), the order and queue kernels' per-stage modes (3 + 4) and its depth range (1); per frame: a few
+    assert len(written) <= 20 * n + 8, sorted(written)
+    # a moved camera: each kernel gets the new camera once, not once per draw
+    scene.camera.position = tuple(np.add(scene.camera.position, (0.01, 0.0, 0.0)))
+    written.clear()
+    r.render(scene, 64, 64)
+    assert 0 < written.count("gua_view_matrix") <= 4, written.count("gua_view_matrix")

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..shaders import set_uniform
+from ..shaders import set_uniforms
 
 if TYPE_CHECKING:
     from ..scene.graph import Scene
@@ -82,9 +82,11 @@ class FrameState:
         }
 
     def set_frame_uniforms(self, prog) -> None:
-        """Write the shared camera uniforms a program uses."""
-        for name, data in self._frame_uniform_bytes.items():
-            set_uniform(prog, name, data)
+        """Write the shared camera uniforms a program uses (once per program and frame: they hold for the frame)."""
+        if getattr(prog, "_gua_frame", None) is self:
+            return
+        set_uniforms(prog, self._frame_uniform_bytes.items())
+        prog._gua_frame = self
 
     def bind_lights(self, prog) -> None:
         """Bind the culled lights (and light grid) for a program that includes shading/lighting."""

@@ -32,7 +32,7 @@ from ..errors import ConfigError
 from ..gpu_counters import CounterBlock
 from ..gpu_timer import Timestamps
 from ..limits import require_bytes
-from ..shaders import SourceMap, set_uniform
+from ..shaders import SourceMap, set_uniform, set_uniforms
 from .material_support import compute_material
 
 # state words of raster/state.glsl.j2, in order
@@ -138,6 +138,7 @@ class ComputeRasterizer:
         # GUACA_RASTER_STAGES=1: GPU time per stage in stats (reading it waits for the GPU: profiling only)
         self._stages = Timestamps() if os.environ.get("GUACA_RASTER_STAGES", "") not in ("", "0") else None
         self._program_sets: dict[tuple, tuple] = {}  # program key -> the four kernels (built once)
+        self._kernels: dict[tuple, object] = {}  # (template, tuning) -> args, order and scan kernels
 
     # ------------------------------------------------------------------ programs
     def _common(self, draw) -> dict:
@@ -234,7 +235,12 @@ class ComputeRasterizer:
         return self._program_sets[key]
 
     def _kernel(self, template: str):
-        return self.renderer.shaders.compute(template, **self._raster_vars())
+        """A material-independent kernel of the rasterizer, compiled once per template and tuning."""
+        key = (template, self.tile, self.small_area, self.small_fragments, self.medium_area)
+        prog = self._kernels.get(key)
+        if prog is None:
+            prog = self._kernels[key] = self.renderer.shaders.compute(template, **self._raster_vars())
+        return prog
 
     # ------------------------------------------------------------------ storage
     def _begin(self, frame, draws) -> None:
@@ -299,24 +305,30 @@ class ComputeRasterizer:
         """
         return bool(getattr(self.renderer.method, "early_termination", False))
 
-    def _order_pass(self, frame, draw, order_kernels, depth_range: tuple[float, float], span) -> None:
+    def _order_constants(self, frame, order_kernel, span) -> None:
+        """The order kernel's uniforms that hold for every draw of a call."""
+        order = self.renderer.method.raster_order()
+        set_uniforms(
+            order_kernel,
+            (
+                ("gua_back_to_front", not self._front_to_back()),
+                ("gua_mesh_order", order == "mesh"),
+                ("gua_tile_order", order == "tile"),
+                ("gua_resolution", (frame.width, frame.height)),
+                ("gua_sample_span", span),
+            ),
+        )
+
+    def _order_pass(self, frame, draw, order_kernels, depth_range: tuple[float, float]) -> None:
         """Bucket-sort the draw's triangles in the frustum by view depth, index or screen tile (order.comp.j2)."""
         ctx, (order_kernel, scan) = self.ctx, order_kernels
-        self._fit_order(draw.mesh.triangle_count)
+        triangles = draw.mesh.triangle_count
+        self._fit_order(triangles)
         self._buckets.bind_to_storage_buffer(14)
         self._order.bind_to_storage_buffer(15)
         self._keys.bind_to_storage_buffer(9)  # the mesh's vertices there served the vertex stage only
-        order = self.renderer.method.raster_order()
-        for name, value in (
-            ("gua_tri_count", draw.mesh.triangle_count),
-            ("gua_depth_range", depth_range),
-            ("gua_back_to_front", not self._front_to_back()),
-            ("gua_mesh_order", order == "mesh"),
-            ("gua_tile_order", order == "tile"),
-            ("gua_resolution", (frame.width, frame.height)),
-            ("gua_sample_span", span),
-        ):
-            set_uniform(order_kernel, name, value)
+        set_uniform(order_kernel, "gua_tri_count", triangles)
+        set_uniform(order_kernel, "gua_depth_range", depth_range)
 
         def mode(m: int, items: int) -> None:
             set_uniform(order_kernel, "gua_order_mode", m)
@@ -324,10 +336,10 @@ class ComputeRasterizer:
             ctx.memory_barrier()
 
         mode(0, BUCKETS)  # clear the bucket counts
-        mode(1, draw.mesh.triangle_count)  # count
+        mode(1, triangles)  # count
         scan.run(1)  # prefix sum, and the setup stage's dispatch
         ctx.memory_barrier()
-        mode(3, draw.mesh.triangle_count)  # scatter
+        mode(3, triangles)  # scatter
 
     @staticmethod
     def _release(buf) -> None:
@@ -349,6 +361,20 @@ class ComputeRasterizer:
         sample_pos = tuple(tuple(p) for p in r.sample_positions)
         args = self._kernel("raster/args.comp.j2")
         order_kernels = self._kernel("raster/order.comp.j2"), self._kernel("raster/order_scan.comp.j2")
+        self._order_constants(frame, order_kernels[0], span)
+        # what every draw of this call shares, written once per kernel below (a kernel serves all the
+        # draws of its material, so only the per-draw values change between them)
+        call_values = {
+            **uniforms,
+            "gua_any_opaque": gbuffer["has_opaque"],  # the geometry pass's own answer
+            "gua_sample_pos": sample_pos,  # coverage at the hardware's sample points
+            "gua_sample_span": span,
+            "gua_large_capacity": self.large_capacity,
+            "gua_job_capacity": self.job_capacity,
+        }
+        programs: dict[int, tuple] = {}
+        ready: set[int] = set()  # kernels given call_values in this call
+        last = None  # (kernels, material instance) whose uniforms and textures the draw before set
         # draws run one after the other: take them in depth order too (see _order_pass)
         ranges = {d.index: self._depth_range(frame, d) for d in draws}
         if self._front_to_back():
@@ -361,7 +387,10 @@ class ComputeRasterizer:
                 self._release(self._verts)
                 self.vertex_capacity = len(d.mesh.positions)
                 self._verts = ctx.buffer(reserve=self.vertex_capacity * VERTEX_RECORD_BYTES)
-            vert, setup, binner, fine = self._programs(d)
+            kernels = programs.get(id(d.material))
+            if kernels is None:  # per material, for this call (the method's state is fixed)
+                kernels = programs[id(d.material)] = self._programs(d)
+            vert, setup, binner, fine = kernels
             vbo, ibo = r.meshes.buffers(d.mesh)
             self._verts.bind_to_storage_buffer(8)
             vbo.bind_to_storage_buffer(9)
@@ -369,35 +398,33 @@ class ComputeRasterizer:
             self._state.bind(11)
             self._large.bind_to_storage_buffer(12)
             self._jobs.bind_to_storage_buffer(13)
-            frame.set_frame_uniforms(vert)
+            for prog in kernels:
+                if prog.glo in ready:
+                    continue
+                ready.add(prog.glo)
+                frame.set_frame_uniforms(prog)
+                if prog is not vert:
+                    set_uniforms(prog, call_values.items())
+                    if per_program is not None:
+                        per_program(prog)
             d.write_transform(vert)
             set_uniform(vert, "gua_vertex_count", len(d.mesh.positions))
-            r._set_material_uniforms(vert, d)
+            if last is None or last[0] is not kernels or last[1] is not d.values:
+                values = r.material_uniforms(d)
+                for prog in kernels:  # (the same kernels and instance as the draw before are all set)
+                    set_uniforms(prog, values)
+                last = kernels, d.values
             self._mark("between_draws")  # from the last stage (or the set-up) to this draw's start
             vert.run(*_grid(len(d.mesh.positions)))
             ctx.memory_barrier()
             self._mark("vertex")
-            self._order_pass(frame, d, order_kernels, ranges[d.index], span)
+            self._order_pass(frame, d, order_kernels, ranges[d.index])
             self._mark("order")
-            draw_values = {
-                **uniforms,
-                "gua_draw_index": d.index,
-                "gua_any_opaque": gbuffer["has_opaque"],  # the geometry pass's own answer
-                "gua_sample_pos": sample_pos,  # coverage at the hardware's sample points
-                "gua_sample_span": span,
-            }
             for prog in (setup, binner, fine):
-                frame.set_frame_uniforms(prog)
-                for k, v in draw_values.items():
-                    set_uniform(prog, k, v)
-                r._set_material_uniforms(prog, d)
-                if per_program is not None:
-                    per_program(prog)
-            set_uniform(setup, "gua_large_capacity", self.large_capacity)
+                set_uniform(prog, "gua_draw_index", d.index)
             setup.run_indirect(self._state.buffer, STATE_WORDS.index("setup_x") * 4)
             ctx.memory_barrier()
             self._mark("setup")
-            set_uniform(binner, "gua_job_capacity", self.job_capacity)
             self._queued_stage(args, 1, self.large_capacity, binner, "bin_x")
             self._mark("bin")
             self._queued_stage(args, 2, self.job_capacity, fine, "fine_x")
@@ -501,3 +528,5 @@ class ComputeRasterizer:
         self._buckets = self._order = self._keys = None
         self.vertex_capacity = self.large_capacity = self.job_capacity = self.order_capacity = 0
         self._fresh, self._frame = True, None
+        self._kernels.clear()  # the programs themselves belong to the renderer's shader library
+        self._program_sets.clear()

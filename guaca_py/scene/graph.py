@@ -100,16 +100,24 @@ class Camera:
 
     def view_matrix(self) -> np.ndarray:
         """World-to-view 4x4 float64 matrix (camera looks down -Z)."""
-        eye = np.asarray(self.position, dtype=np.float64)
-        f = np.asarray(self.target, dtype=np.float64) - eye
-        f /= np.linalg.norm(f)
-        s = np.cross(f, np.asarray(self.up, dtype=np.float64))
-        s /= np.linalg.norm(s)
-        u = np.cross(s, f)
-        m = np.eye(4)
-        m[0, :3], m[1, :3], m[2, :3] = s, u, -f
-        m[:3, 3] = -m[:3, :3] @ eye
-        return m
+        # plain float arithmetic: numpy's cross and norm on 3-vectors cost ~200 Python calls a frame
+        ex, ey, ez = (float(v) for v in self.position)
+        fx, fy, fz = (float(t) - e for t, e in zip(self.target, (ex, ey, ez)))
+        n = math.sqrt(fx * fx + fy * fy + fz * fz)
+        fx, fy, fz = fx / n, fy / n, fz / n
+        ux, uy, uz = (float(v) for v in self.up)
+        sx, sy, sz = fy * uz - fz * uy, fz * ux - fx * uz, fx * uy - fy * ux
+        n = math.sqrt(sx * sx + sy * sy + sz * sz)
+        sx, sy, sz = sx / n, sy / n, sz / n
+        ux, uy, uz = sy * fz - sz * fy, sz * fx - sx * fz, sx * fy - sy * fx
+        return np.array(
+            [
+                [sx, sy, sz, -(sx * ex + sy * ey + sz * ez)],
+                [ux, uy, uz, -(ux * ex + uy * ey + uz * ez)],
+                [-fx, -fy, -fz, fx * ex + fy * ey + fz * ez],
+                [0.0, 0.0, 0.0, 1.0],
+            ]
+        )
 
     def projection_matrix(self, aspect: float) -> np.ndarray:
         """OpenGL perspective 4x4 float64 matrix (clip z in [-w, w])."""

@@ -1,5 +1,5 @@
 """GLSL generation from Jinja2 templates and compilation with readable errors."""
 
-from .templates import ShaderLibrary, SourceMap, set_uniform, uniform_names
+from .templates import ShaderLibrary, SourceMap, set_uniform, set_uniforms, uniform_names
 
-__all__ = ["ShaderLibrary", "SourceMap", "set_uniform", "uniform_names"]
+__all__ = ["ShaderLibrary", "SourceMap", "set_uniform", "set_uniforms", "uniform_names"]

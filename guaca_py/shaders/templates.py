@@ -133,13 +133,17 @@ def uniform_names(prog) -> frozenset[str]:
     moderngl's Program has no __contains__, so `name in prog` walks every member: thousands of
     steps a frame for scenes of many draws.
     """
-    names = getattr(prog, "_gua_names", None)
-    if names is None:
+    try:
+        return prog._gua_names
+    except AttributeError:
         names = prog._gua_names = frozenset(prog)
-    return names
+        prog._gua_held = {}
+        return names
 
 
 _UNSET = object()
+# value types a uniform takes as they are (compared by equality); others are converted first
+_PLAIN = frozenset((int, float, bool, bytes, tuple))
 
 
 def set_uniform(prog, name: str, value) -> bool:
@@ -154,13 +158,12 @@ def set_uniform(prog, name: str, value) -> bool:
     """
     if name not in uniform_names(prog):
         return False
-    if hasattr(value, "tolist"):  # numpy arrays and scalars: plain Python values compare as one
-        value = value.tolist()
-    if isinstance(value, list):
-        value = tuple(value)
-    held = getattr(prog, "_gua_held", None)
-    if held is None:
-        held = prog._gua_held = {}
+    if type(value) not in _PLAIN:
+        if hasattr(value, "tolist"):  # numpy arrays and scalars: plain Python values compare as one
+            value = value.tolist()
+        if isinstance(value, list):
+            value = tuple(value)
+    held = prog._gua_held
     if held.get(name, _UNSET) != value:
         if isinstance(value, bytes):
             prog[name].write(value)
@@ -168,3 +171,16 @@ def set_uniform(prog, name: str, value) -> bool:
             prog[name].value = value
         held[name] = value
     return True
+
+
+def set_uniforms(prog, items) -> None:
+    """set_uniform() for each (name, value) pair of `items`.
+
+    The check for an unchanged value is done here in one step: a frame passes hundreds of values
+    that the program already holds (per-draw loops over a kernel's uniforms).
+    """
+    names = uniform_names(prog)
+    held = prog._gua_held
+    for name, value in items:
+        if name in names and not (type(value) in _PLAIN and held.get(name, _UNSET) == value):
+            set_uniform(prog, name, value)
