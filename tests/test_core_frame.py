@@ -207,3 +207,29 @@ def test_set_uniform_writes_changed_values_only(gl_context):
     assert prog["u"].value == (4.0, 5.0, 6.0)
     assert set_uniform(prog, "not_in_the_program", 1.0) is False and set_uniform(prog, "u", (4.0, 5.0, 6.0))
     prog.release()
+
+
+@pytest.mark.parametrize("method", ["presort_lf_et", "unsorted_blend", "depth_peeling"])
+@pytest.mark.parametrize("samples", [1, 4])
+def test_frames_without_opaque_draws_after_frames_with_them(renderer_factory, method, samples):
+    # the G-buffer depth is cleared only when something may have written it since its last clear
+    # (an opaque draw): an all-transparent frame after one with an opaque occluder must not keep
+    # that occluder's depth, and a run of all-transparent frames must keep drawing the same image
+    from guaca_py.antialiasing import with_samples
+    from guaca_py.pipeline.config import load_pipeline
+
+    if samples > 1 and method != "presort_lf_et":
+        pytest.skip("anti-aliasing is a presort_lf feature")
+    glass = [quad_node("far", -1.0, (0.1, 0.8, 0.2), 0.5, size=3.0), quad_node("near", 0.5, (0.9, 0.2, 0.1), 0.5)]
+    wall = quad_node("wall", 0.0, (0.2, 0.2, 0.9), 1.0, size=1.2)  # opaque, between the two
+    transparent_only, with_wall = simple_scene(glass), simple_scene([*glass, wall])
+
+    def renderer():
+        return renderer_factory(with_samples(load_pipeline("exact"), samples), method=method)
+
+    used = renderer()
+    seen = [used.render(s, 48, 48).image for s in (transparent_only, with_wall, transparent_only, transparent_only)]
+    fresh = {id(s): renderer().render(s, 48, 48).image for s in (transparent_only, with_wall)}
+    assert (seen[1] != seen[0]).any()  # the wall shows
+    for image, s in zip(seen, (transparent_only, with_wall, transparent_only, transparent_only)):
+        assert (image == fresh[id(s)]).all()
