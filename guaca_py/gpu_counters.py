@@ -225,16 +225,21 @@ class UploadBuffer:
         self.ctx = ctx
         self.buffer = None
         self._staging = None
+        self._held = b""  # the bytes the buffer holds from the last upload
 
     def upload(self, data: bytes, min_size: int = 64) -> None:
-        """Replace the contents with `data` (the buffer grows when needed, never shrinks below the data)."""
+        """Replace the contents with `data` (the buffer grows when needed, never shrinks below the data).
+
+        The same bytes as the last upload are not sent again: shaders only read this buffer.
+        """
         size = max(len(data), min_size)
         if self.buffer is None or self.buffer.size < size:
             self.release()
             self.buffer = self.ctx.buffer(reserve=size)
             self._staging = self.ctx.buffer(reserve=size, dynamic=True)
-        if not data:
+        if not data or data == self._held:
             return
+        self._held = data
         if direct_cpu_access():
             self.buffer.write(data)
             return
@@ -251,6 +256,7 @@ class UploadBuffer:
             if b is not None:
                 b.release()
         self.buffer = self._staging = None
+        self._held = b""
 
 
 class StagedReader:

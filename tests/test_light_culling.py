@@ -453,3 +453,23 @@ def test_benchmark_script_runs_tiny(tmp_path):
     assert all(r["on"]["composite_ms"] > 0 and r["off"]["composite_ms"] > 0 for r in data["results"])
     assert (out / "light_culling.png").stat().st_size > 1000
     assert "off/on" in proc.stdout
+
+
+@pytest.mark.parametrize("n_lights", [6, 90])  # kept while unchanged (few lights), gathered every frame (many)
+def test_a_renderer_follows_light_edits_between_frames(renderer_factory, n_lights):
+    # the light table is kept while the lights' values stay the same and an unchanged upload is not
+    # sent again: a light moved, recoloured or retyped in place must show in the next frame exactly
+    # as a fresh renderer draws it
+    scene = lit_scene(n_lights=n_lights)
+    used = renderer_factory(pipeline("fallback"))
+    before = used.render(scene, 64, 64).image
+    assert (used.render(scene, 64, 64).image == before).all()
+    light = scene.lights[0]
+    light.position = tuple(np.add(light.position, (0.4, -0.3, 0.2)))
+    light.color = (1.0, 0.2, 0.1)
+    light.intensity *= 3.0
+    light.type = "spot" if light.type != "spot" else "point"
+    after = used.render(scene, 64, 64).image
+    fresh = renderer_factory(pipeline("fallback")).render(scene, 64, 64).image
+    assert (after == fresh).all()
+    assert (after != before).any()

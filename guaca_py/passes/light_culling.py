@@ -28,6 +28,7 @@ PROXY_EXTENT = 1.0 / (math.cos(math.pi / RING_SEGMENTS) * math.cos(math.pi / (2 
 PROXY_VERTICES = (ARC_SEGMENTS + 2) * RING_SEGMENTS * 6
 LIGHT_GRID_UNIT = 31  # texture unit of the grid: above the G-buffer (0-3), method (4-7) and material (8+) units
 _PLANE_MARGIN = 1e-3  # relative: proxies this close to the near/far plane count as crossing it
+_KEYED_LIGHTS = 64  # up to this many lights, the light table is kept while their values stay the same
 
 
 def _tile_size(v) -> str | None:
@@ -80,6 +81,7 @@ class LightCullingPass(Pass):
         self.grids_built = 0  # grids built (clear and proxy dispatches) since the renderer was made
         self._raw_gl = None
         self._vaos: dict = {}
+        self._table, self._table_key = None, None  # the last light table and the light values it holds
         self.mode, self.mode_note = self._resolve_mode(settings["mode"], renderer.caps)
 
     def _resolve_mode(self, mode: str, caps) -> tuple[str, str]:
@@ -110,6 +112,32 @@ class LightCullingPass(Pass):
         return "conservative", f"GL_NV_conservative_raster via {gl.source}"
 
     # ------------------------------------------------------------------ CPU side
+    def _light_table(self, lights) -> np.ndarray:
+        """light_table() of the scene's lights, made again only when a light's values changed.
+
+        A few lights are compared by value (some twenty numpy calls a frame saved, ~0.1 ms of
+        Python on the GPU machine's host); many are gathered every frame, as comparing them costs
+        as much as gathering them.
+        """
+        if len(lights) > _KEYED_LIGHTS:
+            return light_table(lights)
+        key = tuple(
+            (
+                l.type,
+                *l.position,
+                l.radius,
+                *l.color,
+                l.intensity,
+                *l.direction,
+                l.outer_angle_deg,
+                l.inner_angle_deg,
+            )
+            for l in lights
+        )
+        if key != self._table_key:
+            self._table, self._table_key = light_table(lights), key
+        return self._table
+
     def _order(
         self, table: np.ndarray, idx: np.ndarray, view: np.ndarray, near: float, far: float
     ) -> tuple[np.ndarray, int]:
@@ -208,7 +236,7 @@ class LightCullingPass(Pass):
     # ------------------------------------------------------------------ pass
     def execute(self, frame) -> None:
         """Cull, order and upload the visible lights, then (unless mode 'off') build the light grid."""
-        table = light_table(frame.scene.lights)
+        table = self._light_table(frame.scene.lights)
         idx = np.flatnonzero(visible_mask(table, frame.projection @ frame.view))
         visible = len(idx)
         dropped = max(0, visible - self.settings["max_lights"])
