@@ -319,7 +319,7 @@ class ComputeRasterizer:
             ),
         )
 
-    def _order_pass(self, frame, draw, order_kernels, depth_range: tuple[float, float]) -> None:
+    def _order_pass(self, draw, order_kernels, depth_range: tuple[float, float]) -> None:
         """Bucket-sort the draw's triangles in the frustum by view depth, index or screen tile (order.comp.j2)."""
         ctx, (order_kernel, scan) = self.ctx, order_kernels
         triangles = draw.mesh.triangle_count
@@ -418,7 +418,7 @@ class ComputeRasterizer:
             vert.run(*_grid(len(d.mesh.positions)))
             ctx.memory_barrier()
             self._mark("vertex")
-            self._order_pass(frame, d, order_kernels, ranges[d.index])
+            self._order_pass(d, order_kernels, ranges[d.index])
             self._mark("order")
             for prog in (setup, binner, fine):
                 set_uniform(prog, "gua_draw_index", d.index)
