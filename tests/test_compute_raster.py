@@ -540,7 +540,9 @@ def test_gpu_variants_pass_the_reference_compiler(renderer_factory, tmp_path, me
         cr._program_sets.clear()  # the captured stages are no programs
     assert all(d.transparent for d in draws) and len(stages) == 4 * len(mats)
     stages += [
-        (t, cr._raster_vars()) for t in ("raster/args.comp.j2", "raster/order.comp.j2", "raster/order_scan.comp.j2")
+        *(("raster/args.comp.j2", {**cr._raster_vars(), "args_mode": m}) for m in (1, 2)),
+        *(("raster/order.comp.j2", {**cr._raster_vars(), "order_mode": m}) for m in (0, 1, 3)),
+        ("raster/order_scan.comp.j2", cr._raster_vars()),
     ]
     for i, (template, variables) in enumerate(stages):
         path = tmp_path / f"k{i}.comp"

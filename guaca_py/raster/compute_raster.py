@@ -234,12 +234,19 @@ class ComputeRasterizer:
         self._program_sets[key] = tuple(progs)
         return self._program_sets[key]
 
-    def _kernel(self, template: str):
-        """A material-independent kernel of the rasterizer, compiled once per template and tuning."""
-        key = (template, self.tile, self.small_area, self.small_fragments, self.medium_area)
+    def _kernel(self, template: str, **variables):
+        """A material-independent kernel of the rasterizer, compiled once per template, variables and tuning."""
+        key = (
+            template,
+            tuple(sorted(variables.items())),
+            self.tile,
+            self.small_area,
+            self.small_fragments,
+            self.medium_area,
+        )
         prog = self._kernels.get(key)
         if prog is None:
-            prog = self._kernels[key] = self.renderer.shaders.compute(template, **self._raster_vars())
+            prog = self._kernels[key] = self.renderer.shaders.compute(template, **self._raster_vars(), **variables)
         return prog
 
     # ------------------------------------------------------------------ storage
@@ -305,41 +312,37 @@ class ComputeRasterizer:
         """
         return bool(getattr(self.renderer.method, "early_termination", False))
 
-    def _order_constants(self, frame, order_kernel, span) -> None:
-        """The order kernel's uniforms that hold for every draw of a call."""
+    def _order_constants(self, frame, order_kernels, span) -> None:
+        """The order kernels' uniforms that hold for every draw of a call."""
         order = self.renderer.method.raster_order()
-        set_uniforms(
-            order_kernel,
-            (
-                ("gua_back_to_front", not self._front_to_back()),
-                ("gua_mesh_order", order == "mesh"),
-                ("gua_tile_order", order == "tile"),
-                ("gua_resolution", (frame.width, frame.height)),
-                ("gua_sample_span", span),
-            ),
+        values = (
+            ("gua_back_to_front", not self._front_to_back()),
+            ("gua_mesh_order", order == "mesh"),
+            ("gua_tile_order", order == "tile"),
+            ("gua_resolution", (frame.width, frame.height)),
+            ("gua_sample_span", span),
         )
+        for kernel in order_kernels[:3]:
+            set_uniforms(kernel, values)
 
     def _order_pass(self, draw, order_kernels, depth_range: tuple[float, float]) -> None:
         """Bucket-sort the draw's triangles in the frustum by view depth, index or screen tile (order.comp.j2)."""
-        ctx, (order_kernel, scan) = self.ctx, order_kernels
+        ctx, (clear, count, scatter, scan) = self.ctx, order_kernels
         triangles = draw.mesh.triangle_count
         self._fit_order(triangles)
         self._buckets.bind_to_storage_buffer(14)
         self._order.bind_to_storage_buffer(15)
         self._keys.bind_to_storage_buffer(9)  # the mesh's vertices there served the vertex stage only
-        set_uniform(order_kernel, "gua_tri_count", triangles)
-        set_uniform(order_kernel, "gua_depth_range", depth_range)
-
-        def mode(m: int, items: int) -> None:
-            set_uniform(order_kernel, "gua_order_mode", m)
-            order_kernel.run(*_grid(items))
+        for kernel in (count, scatter):
+            set_uniform(kernel, "gua_tri_count", triangles)
+        set_uniform(count, "gua_depth_range", depth_range)
+        for kernel, items in ((clear, BUCKETS), (count, triangles)):  # clear the bucket counts, count
+            kernel.run(*_grid(items))
             ctx.memory_barrier()
-
-        mode(0, BUCKETS)  # clear the bucket counts
-        mode(1, triangles)  # count
         scan.run(1)  # prefix sum, and the setup stage's dispatch
         ctx.memory_barrier()
-        mode(3, triangles)  # scatter
+        scatter.run(*_grid(triangles))
+        ctx.memory_barrier()
 
     @staticmethod
     def _release(buf) -> None:
@@ -359,9 +362,16 @@ class ComputeRasterizer:
         gbuffer["depth"].use(location=DEPTH_UNIT)
         span = sample_span(r.sample_positions)
         sample_pos = tuple(tuple(p) for p in r.sample_positions)
-        args = self._kernel("raster/args.comp.j2")
-        order_kernels = self._kernel("raster/order.comp.j2"), self._kernel("raster/order_scan.comp.j2")
-        self._order_constants(frame, order_kernels[0], span)
+        # the queue bookkeeping after the setup (1) and bin (2) stages; the order stage's bucket clear
+        # (0), count (1) and scatter (3), then its prefix sum
+        args = {m: self._kernel("raster/args.comp.j2", args_mode=m) for m in (1, 2)}
+        order_kernels = (
+            *(self._kernel("raster/order.comp.j2", order_mode=m) for m in (0, 1, 3)),
+            self._kernel("raster/order_scan.comp.j2"),
+        )
+        self._order_constants(frame, order_kernels, span)
+        set_uniform(args[1], "gua_capacity", self.large_capacity)
+        set_uniform(args[2], "gua_capacity", self.job_capacity)
         # what every draw of this call shares, written once per kernel below (a kernel serves all the
         # draws of its material, so only the per-draw values change between them)
         call_values = {
@@ -381,23 +391,25 @@ class ComputeRasterizer:
             draws = sorted(draws, key=lambda d: ranges[d.index][0])
         else:
             draws = sorted(draws, key=lambda d: -ranges[d.index][1])
+        # the buffers every draw of the call shares (the order stage rebinds 9, the mesh's, per draw)
+        self._verts.bind_to_storage_buffer(8)
+        self._state.bind(11)
+        self._large.bind_to_storage_buffer(12)
+        self._jobs.bind_to_storage_buffer(13)
         for d in draws:
             if len(d.mesh.positions) > self.vertex_capacity:  # a later call of the pass with a larger mesh
                 self._require_vertices(len(d.mesh.positions))
                 self._release(self._verts)
                 self.vertex_capacity = len(d.mesh.positions)
                 self._verts = ctx.buffer(reserve=self.vertex_capacity * VERTEX_RECORD_BYTES)
+                self._verts.bind_to_storage_buffer(8)
             kernels = programs.get(id(d.material))
             if kernels is None:  # per material, for this call (the method's state is fixed)
                 kernels = programs[id(d.material)] = self._programs(d)
             vert, setup, binner, fine = kernels
             vbo, ibo = r.meshes.buffers(d.mesh)
-            self._verts.bind_to_storage_buffer(8)
             vbo.bind_to_storage_buffer(9)
             ibo.bind_to_storage_buffer(10)
-            self._state.bind(11)
-            self._large.bind_to_storage_buffer(12)
-            self._jobs.bind_to_storage_buffer(13)
             for prog in kernels:
                 if prog.glo in ready:
                     continue
@@ -425,9 +437,9 @@ class ComputeRasterizer:
             setup.run_indirect(self._state.buffer, STATE_WORDS.index("setup_x") * 4)
             ctx.memory_barrier()
             self._mark("setup")
-            self._queued_stage(args, 1, self.large_capacity, binner, "bin_x")
+            self._queued_stage(args[1], binner, "bin_x")
             self._mark("bin")
-            self._queued_stage(args, 2, self.job_capacity, fine, "fine_x")
+            self._queued_stage(args[2], fine, "fine_x")
             self._mark("fine")
             self._triangles += d.mesh.triangle_count
 
@@ -436,10 +448,8 @@ class ComputeRasterizer:
         if self._stages is not None:
             self._stages.mark(stage)
 
-    def _queued_stage(self, args, mode: int, capacity: int, prog, dispatch_word: str) -> None:
-        """Clamp the queue the last stage filled to `capacity` (args kernel `mode`), then run `prog` over it."""
-        set_uniform(args, "gua_args_mode", mode)
-        set_uniform(args, "gua_capacity", capacity)
+    def _queued_stage(self, args, prog, dispatch_word: str) -> None:
+        """Clamp the queue the last stage filled to its capacity (an args kernel), then run `prog` over it."""
         args.run(1)
         self.ctx.memory_barrier()
         prog.run_indirect(self._state.buffer, STATE_WORDS.index(dispatch_word) * 4)
