@@ -89,6 +89,19 @@ def test_material_default_of_wrong_shape(tmp_path):
         load_material(p)
 
 
+def test_material_with_more_samplers_than_texture_units(tmp_path):
+    # a material's textures take units 8 to 30 (the light grid has 31): one more is refused at load,
+    # naming the uniform that does not fit, instead of sampling the light grid as a texture
+    from guaca_py.materials.description import MAX_SAMPLERS
+
+    fits = {f"map{i}": {"type": "sampler2D"} for i in range(MAX_SAMPLERS)}
+    assert len(load_material(_material(tmp_path, {"name": "x", "uniforms": fits})).uniforms) == MAX_SAMPLERS
+    over = {**fits, "one_more": {"type": "sampler2D"}}
+    with pytest.raises(ConfigError, match=f"more than {MAX_SAMPLERS} sampler2D") as err:
+        load_material(_material(tmp_path, {"name": "y", "uniforms": over}))
+    assert err.value.key == "one_more" and err.value.line is not None
+
+
 def test_material_method_must_define_function(tmp_path):
     p = _material(tmp_path, {"name": "x", "visibility": [{"name": "m", "source": "void other() {}"}]})
     with pytest.raises(ConfigError, match="void m"):

@@ -11,6 +11,9 @@ import numpy as np
 
 from ..errors import ConfigError
 
+#: sampler2D uniforms a material may declare: each takes its own texture unit, from 8 up to the
+#: light grid's unit 31 (renderer.material_uniforms, passes/light_culling.py)
+MAX_SAMPLERS = 23
 #: uniform type -> number of floats (sampler2D holds a texture path instead)
 UNIFORM_SIZES = {"float": 1, "int": 1, "vec2": 2, "vec3": 3, "vec4": 4, "mat4": 16, "sampler2D": 0}
 STAGES = ("displacement", "visibility")
@@ -288,6 +291,15 @@ def load_material(path: str | Path) -> MaterialDescription:
             else (0.0 if UNIFORM_SIZES[spec["type"]] == 1 else [0.0] * UNIFORM_SIZES[spec["type"]]),
         )
         uniforms[uname] = UniformSpec(uname, spec["type"], check_value(spec["type"], default, path, line, uname))
+        if spec["type"] == "sampler2D" and sum(u.type == "sampler2D" for u in uniforms.values()) > MAX_SAMPLERS:
+            raise ConfigError(
+                f"more than {MAX_SAMPLERS} sampler2D uniforms",
+                path,
+                line,
+                uname,
+                f"a material's textures take texture units 8 to {7 + MAX_SAMPLERS} (the others are the passes'); "
+                "pack several maps into the channels of one texture",
+            )
     methods: dict[str, list[Method]] = {}
     pos = 0
     for stage in STAGES:
