@@ -8,7 +8,7 @@ import os
 from ..gpu_counters import CounterBlock
 from ..limits import pool_node_limit
 from ..pipeline.settings import Setting, non_negative, positive
-from ..shaders import set_uniform
+from ..shaders import set_uniform, set_uniforms
 from .base import TransparencyMethod
 
 NODE_PAYLOAD_BYTES = 32  # depth + 7 payload words, see abuffer/layout.glsl.j2
@@ -105,10 +105,15 @@ class PreSortLF(TransparencyMethod):
         clear = frame.renderer.shaders.compute("abuffer/clear.comp.j2")
         self._links.bind_to_storage_buffer(0)
         self._cull.bind_to_image(0, read=False, write=True)
-        clear["gua_size"] = (frame.width, frame.height)
-        clear["gua_words_per_link"] = self.link_bytes // 4
-        clear["gua_extra_base"] = frame.pixel_count + self.capacity
-        clear["gua_extra_slots"] = self.extra_slots
+        set_uniforms(
+            clear,
+            (
+                ("gua_size", (frame.width, frame.height)),
+                ("gua_words_per_link", self.link_bytes // 4),
+                ("gua_extra_base", frame.pixel_count + self.capacity),
+                ("gua_extra_slots", self.extra_slots),
+            ),
+        )
         clear.run(math.ceil(frame.width / 16), math.ceil(frame.height / 16), 1)
         frame.ctx.memory_barrier()
 

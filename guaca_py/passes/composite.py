@@ -69,7 +69,7 @@ class CompositePass(FullscreenPass):
             method.bind_composite(frame, prog)
         threshold = method.composite_threshold() if method else 1.0
         set_uniform(prog, "gua_threshold", threshold)  # compiled out when nothing is composited under the fragments
-        prog["gua_background"].write(np.asarray(frame.scene.background, dtype=np.float32).tobytes())
+        set_uniform(prog, "gua_background", np.asarray(frame.scene.background, dtype=np.float32).tobytes())
         if self.epilogue is not None:
             self.epilogue.set_epilogue_uniforms(prog)
         g = frame.resources["gbuffer"]

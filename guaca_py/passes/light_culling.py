@@ -10,7 +10,7 @@ import numpy as np
 from ..errors import DeviceError
 from ..gpu_counters import UploadBuffer
 from ..pipeline.settings import Setting, positive
-from ..shaders import set_uniform
+from ..shaders import set_uniform, set_uniforms
 from .base import (
     GL_SHADER_IMAGE_ACCESS_BARRIER_BIT,
     GL_TEXTURE_FETCH_BARRIER_BIT,
@@ -194,15 +194,20 @@ class LightCullingPass(Pass):
         clear = self.renderer.shaders.compute("light_grid/clear.comp.j2")
         self._grid.bind_to_image(0, read=False, write=True)
         self._everywhere.bind(0)
-        clear["gua_grid_dims"] = (tw, th, self.layers_allocated)
+        set_uniform(clear, "gua_grid_dims", (tw, th, self.layers_allocated))
         clear.run(-(-tw // 8), -(-th // 8), self.layers_allocated)
         self.ctx.memory_barrier(_GRID_BARRIERS)
         self.grids_built += 1
         if n_raster:
             prog = self._proxy_program()
-            prog["gua_grid_view_projection"].write(mat_bytes(self._grid_matrix(frame, tw, th)))
-            prog["gua_first_light"] = 0
-            set_uniform(prog, "gua_grid_size", (float(tw), float(th)))
+            set_uniforms(
+                prog,
+                (
+                    ("gua_grid_view_projection", mat_bytes(self._grid_matrix(frame, tw, th))),
+                    ("gua_first_light", 0),
+                    ("gua_grid_size", (float(tw), float(th))),
+                ),
+            )
             self._fbo.use()
             self.ctx.disable(mgl.DEPTH_TEST | mgl.BLEND | mgl.CULL_FACE)
             self._grid.bind_to_image(0, read=True, write=True)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ..pipeline.settings import NUMBER, Setting, positive
+from ..shaders import set_uniform
 from .base import FullscreenPass
 
 
@@ -32,8 +33,8 @@ class ToneMappingPass(FullscreenPass):
 
     def set_epilogue_uniforms(self, prog) -> None:
         """Exposure and sRGB switch of post/tone_curve.glsl.j2."""
-        prog["gua_exposure"] = float(self.settings["exposure"])
-        prog["gua_srgb"] = bool(self.settings["srgb"])
+        set_uniform(prog, "gua_exposure", float(self.settings["exposure"]))
+        set_uniform(prog, "gua_srgb", bool(self.settings["srgb"]))
 
     def execute(self, frame) -> None:
         """Tone-map the composited color."""
