@@ -82,11 +82,8 @@ class FrameState:
         }
 
     def set_frame_uniforms(self, prog) -> None:
-        """Write the shared camera uniforms a program uses (once per program and frame: they hold for the frame)."""
-        if getattr(prog, "_gua_frame", None) is self:
-            return
+        """Write the shared camera uniforms a program uses (those it holds already cost a lookup each)."""
         set_uniforms(prog, self._frame_uniform_bytes.items())
-        prog._gua_frame = self
 
     def bind_lights(self, prog) -> None:
         """Bind the culled lights (and light grid) for a program that includes shading/lighting."""
