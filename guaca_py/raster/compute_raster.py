@@ -61,6 +61,8 @@ STATE_WORDS = (
     "setup_y",
     "setup_z",
 )
+# byte offsets of the indirect dispatch arguments in the state block (glDispatchComputeIndirect)
+_DISPATCH_OFFSET = {w: 4 * STATE_WORDS.index(w) for w in ("setup_x", "bin_x", "fine_x")}
 TILE = 8  # tile edge in pixels of the large-triangle path (one 64-thread workgroup per job, as L&K's fine raster)
 SMALL_AREA = 128  # candidate boxes up to this many pixels may be rasterized by one thread
 # A triangle covering more than SMALL_FRAGMENTS px² goes to a workgroup (bin stage) even in a small
@@ -434,7 +436,7 @@ class ComputeRasterizer:
             self._mark("order")
             for prog in (setup, binner, fine):
                 set_uniform(prog, "gua_draw_index", d.index)
-            setup.run_indirect(self._state.buffer, STATE_WORDS.index("setup_x") * 4)
+            setup.run_indirect(self._state.buffer, _DISPATCH_OFFSET["setup_x"])
             ctx.memory_barrier()
             self._mark("setup")
             self._queued_stage(args[1], binner, "bin_x")
@@ -452,7 +454,7 @@ class ComputeRasterizer:
         """Clamp the queue the last stage filled to its capacity (an args kernel), then run `prog` over it."""
         args.run(1)
         self.ctx.memory_barrier()
-        prog.run_indirect(self._state.buffer, STATE_WORDS.index(dispatch_word) * 4)
+        prog.run_indirect(self._state.buffer, _DISPATCH_OFFSET[dispatch_word])
         self.ctx.memory_barrier()
 
     def finish(self, frame) -> bool:
