@@ -16,13 +16,13 @@ from .frame import mat_bytes
 _NUMBERS = frozenset((float, int))
 
 
-def _freeze(value):
+def freeze(value):
     """A hashable stand-in for a uniform value (lists and arrays become tuples; objects stay)."""
     kind = type(value)
     if (kind is tuple or kind is list) and set(map(type, value)) <= _NUMBERS:
         return tuple(value)  # plain numbers as they are: the common case, a handful of calls a node a frame
     if isinstance(value, (list, tuple, np.ndarray)):
-        return tuple(_freeze(v) for v in value)
+        return tuple(freeze(v) for v in value)
     if isinstance(value, (float, np.floating)):
         return float(value)
     return value
@@ -32,7 +32,7 @@ def transform_key(transform):
     """Hashable key of a Transform's values (a MatrixTransform's matrix bytes)."""
     if hasattr(transform, "_matrix"):
         return ("matrix", transform._matrix.tobytes())
-    return (_freeze(transform.translation), _freeze(transform.rotation_deg), _freeze(transform.scale))
+    return (freeze(transform.translation), freeze(transform.rotation_deg), freeze(transform.scale))
 
 
 class _TwoGenerations:
@@ -99,5 +99,5 @@ def material_key(inst, scene_source) -> tuple:
     if inst is None:
         return ("pbr", (), (str(scene_source), None))
     where = getattr(inst, "source", (scene_source, None))
-    uniforms = tuple(sorted((k, _freeze(v)) for k, v in inst.uniforms.items()))
+    uniforms = tuple(sorted((k, freeze(v)) for k, v in inst.uniforms.items()))
     return (inst.description, uniforms, (str(where[0]), where[1]))
