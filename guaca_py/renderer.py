@@ -213,14 +213,15 @@ class Renderer:
             label=f"{label} ({mat.path})",
         )
 
-    def material_uniforms(self, draw) -> list[tuple[str, object]]:
-        """The draw's material uniforms as set_uniform() takes them; binds its textures to their units now.
+    def apply_material(self, draw, programs) -> None:
+        """Bind the draw's material textures to their units and set its uniform values on `programs`.
 
         Every sampler gets its own unit whether or not a given program reads it, so the values hold
-        for every program of the material (the compute rasterizer sets them on four kernels).
+        for every program of the material (the compute rasterizer sets them on four kernels); the
+        values are converted once for all of them.
         """
         unit = _TEXTURE_UNIT_BASE
-        out = []
+        values = []
         for name, spec in draw.material.uniforms.items():
             value = draw.values[name]
             if spec.type == "sampler2D":
@@ -230,8 +231,9 @@ class Renderer:
                 value = mat_bytes(np.asarray(value, dtype=np.float64).reshape(4, 4))
             elif isinstance(value, list):
                 value = tuple(value)
-            out.append((name, value))
-        return out
+            values.append((name, value))
+        for prog in programs:
+            set_uniforms(prog, values)
 
     def draw_list(self, frame, draws, transparent: bool, uniforms: dict | None = None, per_program=None) -> None:
         """Draw `draws` with their (opaque or transparent) programs and the given extra uniforms."""
@@ -252,7 +254,7 @@ class Renderer:
             d.write_transform(prog)
             set_uniform(prog, "gua_draw_index", d.index)
             if switched or d.values is not last_values:  # the same instance as the draw before is all set
-                set_uniforms(prog, self.material_uniforms(d))
+                self.apply_material(d, (prog,))
                 last_values = d.values
             self.meshes.vao(d.mesh, prog).render(moderngl.TRIANGLES)
 

@@ -12,7 +12,7 @@ import numpy as np
 from ..errors import ConfigError
 
 #: sampler2D uniforms a material may declare: each takes its own texture unit, from 8 up to the
-#: light grid's unit 31 (renderer.material_uniforms, passes/light_culling.py)
+#: light grid's unit 31 (renderer.apply_material, passes/light_culling.py)
 MAX_SAMPLERS = 23
 #: uniform type -> number of floats (sampler2D holds a texture path instead)
 UNIFORM_SIZES = {"float": 1, "int": 1, "vec2": 2, "vec3": 3, "vec4": 4, "mat4": 16, "sampler2D": 0}

@@ -424,9 +424,7 @@ class ComputeRasterizer:
             d.write_transform(vert)
             set_uniform(vert, "gua_vertex_count", len(d.mesh.positions))
             if last is None or last[0] is not kernels or last[1] is not d.values:
-                values = r.material_uniforms(d)
-                for prog in kernels:  # (the same kernels and instance as the draw before are all set)
-                    set_uniforms(prog, values)
+                r.apply_material(d, kernels)  # (the same kernels and instance as the draw before are all set)
                 last = kernels, d.values
             self._mark("between_draws")  # from the last stage (or the set-up) to this draw's start
             vert.run(*_grid(len(d.mesh.positions)))
