@@ -48,6 +48,22 @@ def renderer_factory(gl_context):
         r.release()
 
 
+@pytest.fixture(scope="session")
+def lit_demo_presort(renderer_factory):
+    """The demo scene and its lit, tone-mapped presort_lf frame (96x72): what other methods must shade like."""
+    from guaca_py.scene.loader import demo_scene
+
+    return demo_scene(), renderer_factory("default", method="presort_lf").render(demo_scene(), 96, 72).image
+
+
+def lit_demo_difference(renderer_factory, lit_demo_presort, method: str) -> int:
+    """Largest channel difference (0-255) between `method`'s lit demo frame and presort_lf's."""
+    scene, expected = lit_demo_presort
+    frame = renderer_factory("default", method=method).render(scene, 96, 72)
+    assert frame.stats["fragments"]["stored"] > 0
+    return int(np.abs(frame.image.astype(int) - expected.astype(int)).max())
+
+
 @pytest.fixture(scope="module")
 def renderers(renderer_factory):
     """One exact-pipeline renderer per (method, settings) in a module: programs compile once."""

@@ -9,7 +9,13 @@ import dataclasses
 import numpy as np
 import pytest
 from conftest import quad_node, simple_scene
-from reference import ReferenceCache, compare, interpenetrating_scene, layered_quads_scene
+from reference import (
+    ReferenceCache,
+    compare,
+    layered_quads_scene,
+    render_interpenetrating_exactly,
+    render_layered_exactly,
+)
 
 SIZE = 96
 METHODS = ["presort_lf_merge2_et", "presort_cs", "presort_cs_et", "post_sort", "post_merge16"]
@@ -48,24 +54,13 @@ def check_common(frame, method):
 @pytest.mark.parametrize("method", METHODS)
 @pytest.mark.parametrize("order", ["front_to_back", "back_to_front", "shuffled"])
 def test_exact_layered_with_opaque(renderers, method, order):
-    # 18 tilted layers and an opaque quad between them, in three submission orders
-    scene = layered_quads_scene(n_layers=18, order=order, seed=3)
-    ref, mask, layers = reference_of(("layered", order), scene)
-    assert layers.max() >= 16
-    frame = renderers(method).render(scene, SIZE, SIZE)
-    err = compare(frame.image, ref, mask)
-    assert err["max_abs_255"] <= 2.0, err
-    check_common(frame, method)
+    check_common(render_layered_exactly(_REFS, renderers(method), order, SIZE), method)
 
 
 @pytest.mark.parametrize("method", METHODS)
 @pytest.mark.parametrize("order", ["forward", "reverse", "shuffled"])
 def test_exact_interpenetrating(renderers, method, order):
-    scene = interpenetrating_scene(order=order, seed=1)
-    ref, mask, _ = reference_of(("inter", order), scene)
-    frame = renderers(method).render(scene, SIZE, SIZE)
-    err = compare(frame.image, ref, mask)
-    assert err["max_abs_255"] <= 2.0, err
+    check_common(render_interpenetrating_exactly(_REFS, renderers(method), order, SIZE), method)
 
 
 @pytest.mark.parametrize("method", METHODS)

@@ -6,7 +6,7 @@ import functools
 
 import numpy as np
 import pytest
-from conftest import quad_node, simple_scene
+from conftest import lit_demo_difference, quad_node, simple_scene
 from reference import compare, edge_mask, interpenetrating_scene, layered_quads_scene, render_reference, scene_triangles
 
 METHODS = ["dfb", "sbuffer", "paged_ll"]
@@ -207,17 +207,7 @@ def test_transparency_hidden_behind_opaque(renderer_factory, method):
     assert compare(frame.image, ref, mask)["max_abs_255"] <= 2.0
 
 
-@pytest.fixture(scope="module")
-def lit_demo_presort(renderer_factory):
-    from guaca_py.scene.loader import demo_scene
-
-    return demo_scene(), renderer_factory("default", method="presort_lf").render(demo_scene(), 96, 72).image
-
-
 @pytest.mark.parametrize("method", METHODS)
 def test_lit_demo_shades_like_presort_lf(renderer_factory, lit_demo_presort, method):
     # same payload, same shade_surface at composite: the lit, tone-mapped demo frame matches presort_lf
-    scene, expected = lit_demo_presort
-    frame = renderer_factory("default", method=method).render(scene, 96, 72)
-    assert frame.stats["fragments"]["stored"] > 0
-    assert np.abs(frame.image.astype(int) - expected.astype(int)).max() <= 1
+    assert lit_demo_difference(renderer_factory, lit_demo_presort, method) <= 1

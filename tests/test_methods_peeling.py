@@ -10,8 +10,14 @@ import subprocess
 
 import numpy as np
 import pytest
-from conftest import quad_node, simple_scene
-from reference import ReferenceCache, compare, interpenetrating_scene, layered_quads_scene
+from conftest import lit_demo_difference, quad_node, simple_scene
+from reference import (
+    ReferenceCache,
+    compare,
+    layered_quads_scene,
+    render_interpenetrating_exactly,
+    render_layered_exactly,
+)
 
 SIZE = 64
 METHODS = [
@@ -60,26 +66,13 @@ def check_stats(frame, method):
 @pytest.mark.parametrize("method", METHODS)
 @pytest.mark.parametrize("order", ["front_to_back", "back_to_front", "shuffled"])
 def test_exact_layered_with_opaque(renderers, method, order):
-    # 18 tilted layers and an opaque quad between them, in three submission orders
-    scene = layered_quads_scene(n_layers=18, order=order, seed=3)
-    ref, mask, layers = reference_of(("layered", order), scene)
-    assert layers.max() >= 16
-    frame = renderers(method).render(scene, SIZE, SIZE)
-    err = compare(frame.image, ref, mask)
-    assert err["max_abs_255"] <= 2.0, err
-    check_stats(frame, method)
+    check_stats(render_layered_exactly(_REFS, renderers(method), order, SIZE), method)
 
 
 @pytest.mark.parametrize("method", METHODS)
 @pytest.mark.parametrize("order", ["forward", "reverse", "shuffled"])
 def test_exact_interpenetrating(renderers, method, order):
-    # mutually intersecting triangles (no per-object order exists) and an opaque one in front
-    scene = interpenetrating_scene(order=order, seed=1)
-    ref, mask, _ = reference_of(("interpenetrating", order), scene)
-    frame = renderers(method).render(scene, SIZE, SIZE)
-    err = compare(frame.image, ref, mask)
-    assert err["max_abs_255"] <= 2.0, err
-    check_stats(frame, method)
+    check_stats(render_interpenetrating_exactly(_REFS, renderers(method), order, SIZE), method)
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -261,23 +254,13 @@ def test_unsupported_without_ordering(renderer_factory, gl_context):
     assert r.method.order is None
 
 
-@pytest.fixture(scope="module")
-def lit_demo_presort(renderer_factory):
-    from guaca_py.scene.loader import demo_scene
-
-    return demo_scene(), renderer_factory("default", method="presort_lf").render(demo_scene(), 96, 72).image
-
-
 @pytest.mark.parametrize("method", METHODS)
 def test_lit_demo_shades_like_presort_lf(renderer_factory, lit_demo_presort, method):
     # lit, tone-mapped demo with the light grid: peeled layers (shaded by the steps from stored
     # payloads) and in-place composited runs shade exactly like the A-buffer's composite
-    scene, expected = lit_demo_presort
-    frame = renderer_factory("default", method=method).render(scene, 96, 72)
-    assert frame.stats["fragments"]["stored"] > 0
     # display-encoded (tone curve + sRGB + FXAA) images: NVIDIA's compute-shader shading of peeled
     # layers rounds differently from the composite's fragment shader by up to 2/255 there
-    assert np.abs(frame.image.astype(int) - expected.astype(int)).max() <= 2
+    assert lit_demo_difference(renderer_factory, lit_demo_presort, method) <= 2
 
 
 @pytest.mark.skipif(shutil.which("glslangValidator") is None, reason="glslangValidator (glslang-tools) not installed")
