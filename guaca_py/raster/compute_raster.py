@@ -109,6 +109,11 @@ def sample_span(positions) -> tuple[int, int, int, int]:
     return (min(xs), min(ys), max(xs), max(ys))
 
 
+def sample_offsets(positions) -> tuple[tuple[int, int], ...]:
+    """Each sample point's offset from the pixel centre, in 1/256 pixel (the fixed-point path's points)."""
+    return tuple((round(x * 256) - 128, round(y * 256) - 128) for x, y in positions)
+
+
 def _grid(items: int, group: int = _GROUP) -> tuple[int, int, int]:
     groups = max(1, math.ceil(items / group))
     return min(groups, _MAX_GROUPS_X), math.ceil(groups / _MAX_GROUPS_X), 1
@@ -381,6 +386,7 @@ class ComputeRasterizer:
             "gua_any_opaque": gbuffer["has_opaque"],  # the geometry pass's own answer
             "gua_sample_pos": sample_pos,  # coverage at the hardware's sample points
             "gua_sample_span": span,
+            "gua_sample_offset": sample_offsets(r.sample_positions),
             "gua_large_capacity": self.large_capacity,
             "gua_job_capacity": self.job_capacity,
         }
