@@ -503,21 +503,24 @@ def test_command_line_set_and_info(capsys, tmp_path):
 
 
 @pytest.mark.skipif(shutil.which("glslangValidator") is None, reason="glslangValidator (glslang-tools) not installed")
+@pytest.mark.parametrize("samples", [1, 4])
 @pytest.mark.parametrize("method", ["presort_lf_et", "presort_lf_merge2_et"])
-def test_gpu_variants_pass_the_reference_compiler(renderer_factory, tmp_path, method):
+def test_gpu_variants_pass_the_reference_compiler(renderer_factory, tmp_path, method, samples):
     # the NVIDIA variants (64-bit insertion, subgroup ballots) of every kernel, with every built-in
-    # material made transparent, through Khronos' reference compiler (this device cannot
-    # compile them)
+    # material made transparent, at one and at four samples (the list walk differs per kernel and
+    # sample count), through Khronos' reference compiler (this device cannot compile them)
     import subprocess
 
     from guaca_py.methods import method_class
     from guaca_py.pipeline.drawlist import build_draw_list
     from guaca_py.renderer import method_settings
 
-    r = renderer_factory("exact", method=method, method_overrides={"raster": "compute"})
+    pipeline = with_samples(load_pipeline("exact"), samples) if samples > 1 else "exact"
+    r = renderer_factory(pipeline, method=method, method_overrides={"raster": "compute"})
     extra = {"shader_ballot": True} if hasattr(r.caps, "shader_ballot") else {}
     caps = dataclasses.replace(r.caps, atomic_int64=True, **extra)
     m = method_class(method)(method_settings(method, {"raster": "compute"}), caps)
+    m.aa_samples = r.samples
     cr = r.raster.compute
     r.method, saved = m, r.method
     try:
