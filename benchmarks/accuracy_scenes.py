@@ -312,6 +312,7 @@ def chart(rec: dict, path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from chart_axes import plain_log_axis
 
     rows = [r for r in rec["rows"] if "skipped" not in r]
     fig, axes = plt.subplots(1, 2, figsize=(13, 5.5))
@@ -327,6 +328,7 @@ def chart(rec: dict, path: Path) -> None:
             dy = (-12, 4, 14, -22)[i % 4]
             ax.annotate(r["label"], (r["ms"], r[key]), fontsize=6, xytext=(3, dy), textcoords="offset points")
         ax.set_xscale("log")
+        plain_log_axis(ax.xaxis)
         ax.set_xlabel("frame time (ms, median)")
         ax.set_ylabel("error against the supersampled exact frame (1/255)")
         ax.set_title(title)

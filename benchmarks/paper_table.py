@@ -406,6 +406,7 @@ def plot(out: dict, path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from chart_axes import plain_log_axis
 
     scenes = [
         s
@@ -424,15 +425,18 @@ def plot(out: dict, path: Path) -> None:
         rows = {m: r for m, r in out["scenes"][stem].items() if isinstance(r, dict) and "total_ms" in r}
         names = list(rows)
         colors = ["#dd8452" if "(compute)" in m else "#4c72b0" for m in names]  # compute rasterizer: orange
-        ax.barh(names, [rows[m]["total_ms"] for m in names], color=colors)
+        bars = ax.barh(names, [rows[m]["total_ms"] for m in names], color=colors)
+        ax.bar_label(bars, fmt="%.2f", fontsize=7, padding=2)
         paper = out["scenes"][stem]["paper_ms"]
         ax.axvline(paper, color="#c44e52", ls="--", label=f"paper PreSortLF* {paper} ms (GTX 980)")
         ax.axvline(paper / 10, color="#55a868", ls=":", label="target: paper / 10")
         ax.set_xscale("log")
+        plain_log_axis(ax.xaxis)
+        ax.margins(x=0.15)  # room for the bar labels
         ax.set_title(stem)
         ax.set_xlabel("GPU ms per frame (1024²)")
         ax.invert_yaxis()
-        ax.legend(fontsize=7, loc="lower right")
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)  # below: clear of the bar labels
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 

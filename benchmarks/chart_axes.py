@@ -1,0 +1,16 @@
+"""Axis formatting shared by the benchmark charts."""
+
+from __future__ import annotations
+
+
+def plain_log_axis(axis) -> None:
+    """Label a log-scale matplotlib axis with plain numbers at 1, 2 and 5 per decade.
+
+    Matplotlib's default labels powers of ten only across a wide range and every minor tick across a
+    short one (2×10⁰ 3×10⁰ ...), where the labels run into each other; neither reads as a time.
+    """
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+    axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    axis.set_minor_formatter(NullFormatter())
