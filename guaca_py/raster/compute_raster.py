@@ -22,9 +22,12 @@ report what they hold and drop.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import weakref
+from collections.abc import Mapping
+from types import MappingProxyType
 
 import numpy as np
 
@@ -100,18 +103,23 @@ def _bound_corners(mesh) -> np.ndarray:
     return hit[1]
 
 
-def sample_span(positions) -> tuple[int, int, int, int]:
-    """Bounds (x0, y0, x1, y1) of the sample points in a pixel, in 1/256 pixel (the centre without samples)."""
-    if not positions:
-        return (128, 128, 128, 128)
-    xs = [round(x * 256) for x, _ in positions]
-    ys = [round(y * 256) for _, y in positions]
-    return (min(xs), min(ys), max(xs), max(ys))
+@functools.lru_cache(maxsize=8)
+def sample_uniforms(positions: tuple[tuple[float, float], ...]) -> Mapping[str, object]:
+    """The rasterizer's uniforms derived from the device's sample points, computed once per set of points.
 
-
-def sample_offsets(positions) -> tuple[tuple[int, int], ...]:
-    """Each sample point's offset from the pixel centre, in 1/256 pixel (the fixed-point path's points)."""
-    return tuple((round(x * 256) - 128, round(y * 256) - 128) for x, y in positions)
+    gua_sample_pos: the points in the pixel (the homogeneous path's); gua_sample_offset: each one's
+    offset from the pixel centre in 1/256 pixel (the fixed-point path's); gua_sample_span: their
+    bounds (x0, y0, x1, y1) in 1/256 pixel, the pixel centre (128) with one sample.
+    """
+    offsets = tuple((round(x * 256) - 128, round(y * 256) - 128) for x, y in positions)
+    xs, ys = [128 + o[0] for o in offsets] or [128], [128 + o[1] for o in offsets] or [128]
+    return MappingProxyType(  # read-only: the cache hands the same mapping to every call
+        {
+            "gua_sample_pos": positions,
+            "gua_sample_offset": offsets,
+            "gua_sample_span": (min(xs), min(ys), max(xs), max(ys)),
+        }
+    )
 
 
 def _grid(items: int, group: int = _GROUP) -> tuple[int, int, int]:
@@ -367,8 +375,7 @@ class ComputeRasterizer:
         ctx, r = self.ctx, self.renderer
         gbuffer = frame.resources["gbuffer"]
         gbuffer["depth"].use(location=DEPTH_UNIT)
-        span = sample_span(r.sample_positions)
-        sample_pos = tuple(tuple(p) for p in r.sample_positions)
+        samples = sample_uniforms(r.sample_positions)
         # the queue bookkeeping after the setup (1) and bin (2) stages; the order stage's bucket clear
         # (0), count (1) and scatter (3), then its prefix sum
         args = {m: self._kernel("raster/args.comp.j2", args_mode=m) for m in (1, 2)}
@@ -376,7 +383,7 @@ class ComputeRasterizer:
             *(self._kernel("raster/order.comp.j2", order_mode=m) for m in (0, 1, 3)),
             self._kernel("raster/order_scan.comp.j2"),
         )
-        self._order_constants(frame, order_kernels, span)
+        self._order_constants(frame, order_kernels, samples["gua_sample_span"])
         set_uniform(args[1], "gua_capacity", self.large_capacity)
         set_uniform(args[2], "gua_capacity", self.job_capacity)
         # what every draw of this call shares, written once per kernel below (a kernel serves all the
@@ -384,9 +391,7 @@ class ComputeRasterizer:
         call_values = {
             **uniforms,
             "gua_any_opaque": gbuffer["has_opaque"],  # the geometry pass's own answer
-            "gua_sample_pos": sample_pos,  # coverage at the hardware's sample points
-            "gua_sample_span": span,
-            "gua_sample_offset": sample_offsets(r.sample_positions),
+            **samples,  # coverage at the hardware's sample points
             "gua_large_capacity": self.large_capacity,
             "gua_job_capacity": self.job_capacity,
         }
