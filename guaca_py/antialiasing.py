@@ -118,7 +118,16 @@ def check_method(method_cls, samples: int) -> None:
         raise UnsupportedMethodError(reason)
 
 
-def with_samples(config, samples: int):
-    """A copy of PipelineConfig `config` rendering `samples` per pixel."""
-    settings = parse({"samples": samples}, lambda k, r, h: ConfigError(r, config.source, None, f"antialiasing.{k}", h))
-    return dataclasses.replace(config, antialiasing=settings)
+def with_settings(config, given: dict, source: str):
+    """A copy of PipelineConfig `config` with `antialiasing:` settings `given` (from `source`) over its own."""
+
+    def error(key, reason, hint):
+        return ConfigError(reason, source, None, f"antialiasing.{key}", hint)
+
+    parse(given, error)  # a bad value is reported under `source`, not under the pipeline file
+    return dataclasses.replace(config, antialiasing=parse({**config.antialiasing, **given}, error))
+
+
+def with_samples(config, samples: int, source: str = "the samples argument"):
+    """A copy of PipelineConfig `config` rendering `samples` per pixel (`source`: where the number came from)."""
+    return with_settings(config, {"samples": samples}, source)

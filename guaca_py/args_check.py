@@ -13,8 +13,32 @@ def _at_least(value: int | None, lo: int, option: str, hint: str) -> None:
         raise ConfigError(f"must be >= {lo}, got {value}", key=option, hint=hint)
 
 
+def check_method_option(method: str | None) -> None:
+    """Refuse an unknown --method under the option's name (before a context is made)."""
+    from .methods import method_ids
+
+    if method is not None and method not in method_ids():
+        raise ConfigError(
+            f"unknown transparency method '{method}'", key="--method", hint=f"known: {', '.join(method_ids())}"
+        )
+
+
+def parse_set_option(item: str) -> tuple[str, object]:
+    """KEY and the YAML value of one `--set KEY=VALUE`; a malformed item is refused under its own text."""
+    import yaml
+
+    key, sep, text = item.partition("=")
+    if not sep or not key.strip():
+        raise ConfigError(f"expects KEY=VALUE, got {item!r}", key="--set", hint="e.g. --set budget_mb=64")
+    try:
+        return key.strip(), yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"cannot read {text!r}: {exc}", key="--set", hint="e.g. --set budget_mb=64") from None
+
+
 def check_render_args(args) -> None:
-    """Reject bad numbers, missing directories and unwritable outputs with the option's name."""
+    """Reject bad numbers, unknown methods, missing directories and unwritable outputs with the option's name."""
+    check_method_option(args.method)
     _at_least(args.width, 1, "--width", "give the image width in pixels, e.g. --width 512")
     _at_least(args.height, 1, "--height", "give the image height in pixels, e.g. --height 512")
     _at_least(args.frames, 1, "--frames", "at least one frame is rendered and timed")

@@ -6,17 +6,34 @@ import argparse
 import json
 import sys
 
-from .args_check import check_render_args
-from .errors import ConfigError, GuacaError
+from .args_check import check_method_option, check_render_args, parse_set_option
+from .errors import GuacaError
 
 
-def _parse_value(text: str):
-    import yaml
+def _options_over_pipeline(args):
+    """The pipeline with --samples and `--set antialiasing.*` applied, and the `--set` transparency settings.
 
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"cannot read {text!r}: {exc}", key="--set", hint="e.g. --set budget_mb=64") from None
+    Each value is checked under the option that gave it (`--samples`, `--set KEY=VALUE`), so an error
+    never names the pipeline file for a value the file does not hold.
+    """
+    from .antialiasing import with_samples, with_settings
+    from .pipeline.config import load_pipeline
+    from .renderer import method_settings
+
+    pipeline = load_pipeline(args.pipeline)
+    mid = args.method or pipeline.transparency["method"]
+    overrides = {}
+    for item in args.set or []:
+        key, value = parse_set_option(item)
+        if key.startswith("antialiasing."):
+            pipeline = with_settings(pipeline, {key.removeprefix("antialiasing."): value}, f"--set {item}")
+            continue
+        key = key.removeprefix("transparency.")  # the settings live under the pipeline's `transparency:` key
+        method_settings(mid, {}, {key: value}, overrides_source=f"--set {item}")  # checked under the item
+        overrides[key] = value
+    if args.samples is not None:  # antialiasing.samples of the pipeline, overridden
+        pipeline = with_samples(pipeline, args.samples, "--samples")
+    return pipeline, overrides
 
 
 def _cmd_render(args) -> int:
@@ -26,19 +43,7 @@ def _cmd_render(args) -> int:
 
     check_render_args(args)
     scene = load_any(args.scene) if args.scene else demo_scene()  # YAML, glTF or a mesh file
-    overrides = {}
-    for item in args.set or []:
-        if "=" not in item:
-            raise GuacaError(f"--set expects key=value, got {item!r}")
-        k, v = item.split("=", 1)
-        # the settings live under the pipeline's `transparency:` key; accept that spelling too
-        overrides[k.strip().removeprefix("transparency.")] = _parse_value(v)
-    pipeline = args.pipeline
-    if args.samples is not None:  # antialiasing.samples of the pipeline, overridden
-        from .antialiasing import with_samples
-        from .pipeline.config import load_pipeline
-
-        pipeline = with_samples(load_pipeline(pipeline), args.samples)
+    pipeline, overrides = _options_over_pipeline(args)
     renderer = Renderer(pipeline, method=args.method, method_overrides=overrides, material_paths=args.materials)
     if args.frames > 1 or args.warmup:
         from .benchmarking import measure
@@ -92,6 +97,7 @@ def _cmd_view(args) -> int:
     from .scene.loader import demo_scene
     from .viewer.window import run_viewer
 
+    check_method_option(args.method)
     scene = load_any(args.scene) if args.scene else demo_scene()
     viewer = run_viewer(
         scene,
@@ -175,7 +181,12 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("scene", nargs="?", help="scene YAML or mesh file (default: built-in demo)")
     r.add_argument("--pipeline", default="default", help="pipeline YAML or built-in name (default, exact)")
     r.add_argument("--method", help="transparency method id (see `guaca methods`)")
-    r.add_argument("--set", action="append", metavar="KEY=VALUE", help="transparency setting, e.g. --set budget_mb=1")
+    r.add_argument(
+        "--set",
+        action="append",
+        metavar="KEY=VALUE",
+        help="a transparency setting (e.g. --set budget_mb=1) or antialiasing.samples; repeatable",
+    )
     r.add_argument("--width", type=int)
     r.add_argument("--height", type=int)
     r.add_argument("--samples", type=int, help="antialiasing samples per pixel (1, 2, 4, 8): overrides the pipeline's")

@@ -21,12 +21,13 @@ class ConfigError(GuacaError):
         hint: str | None = None,
     ):
         self.reason, self.file, self.line, self.key, self.hint = reason, file, line, key, hint
-        where = str(file) if file is not None else "<input>"
-        if line is not None:
-            where += f":{line}"
-        msg = f"{where}: "
-        if key:
-            msg += f"'{key}': "
+        if file is None and key and key.startswith("-"):
+            msg = f"{key}: "  # a command-line option is its own location
+        else:
+            where = str(file) if file is not None else "<input>"
+            if line is not None:
+                where += f":{line}"
+            msg = f"{where}: " + (f"'{key}': " if key else "")
         msg += reason
         if hint:
             msg += f" ({hint})"

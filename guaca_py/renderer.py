@@ -32,12 +32,27 @@ _FIRST_RESOURCES = {"draw_list", "lights"}
 _TEXTURE_UNIT_BASE = 8  # units below are used by the passes' own inputs
 
 
-def method_settings(mid: str, base: dict, overrides: dict | None = None, source: str = "<method>") -> dict:
-    """Settings for method `mid`: keys of `base` it accepts, then `overrides` (validated)."""
+def method_settings(
+    mid: str,
+    base: dict,
+    overrides: dict | None = None,
+    source: str = "<method>",
+    overrides_source: str = "method_overrides",
+) -> dict:
+    """Settings for method `mid`: keys of `base` (from `source`) it accepts, then `overrides`, each validated.
+
+    A bad override is reported under `overrides_source` (the argument or command-line option it
+    came from), not under the pipeline file, which may hold no such value.
+    """
     schema = method_class(mid).settings_schema()
-    given = {k: v for k, v in base.items() if k in schema}
-    given.update(overrides or {})
-    out = resolve_settings(schema, given, lambda k, r, h: ConfigError(r, source, None, f"transparency.{k}", h))
+
+    def error(where):
+        return lambda k, r, h: ConfigError(r, where, None, f"transparency.{k}", h)
+
+    out = resolve_settings(schema, {k: v for k, v in base.items() if k in schema}, error(source))
+    if overrides:
+        checked = resolve_settings(schema, overrides, error(overrides_source))
+        out.update({k: checked[k] for k in overrides})
     out["method"] = mid
     return out
 
@@ -145,7 +160,10 @@ class Renderer:
     def set_method(self, mid: str, overrides: dict | None = None) -> None:
         """Switch the transparency method (settings shared with the config carry over)."""
         if mid not in method_ids():
-            raise ConfigError(f"unknown transparency method '{mid}'", hint=f"known: {', '.join(method_ids())}")
+            # a pipeline file's method is checked with its line when it is read: this one is an argument
+            raise ConfigError(
+                f"unknown transparency method '{mid}'", "method", hint=f"known: {', '.join(method_ids())}"
+            )
         cls = method_class(mid)
         reason = cls.unsupported_reason(self.caps)
         if reason:

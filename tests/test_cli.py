@@ -140,6 +140,12 @@ def test_samples_option_overrides_the_pipeline(scene_file, tmp_path, capsys):
     args = ["render", str(scene_file), "--pipeline", "exact", "--width", "32", "--height", "32"]
     assert main([*args, "--samples", "4", "--out", str(out), "--stats", str(stats)]) == 0
     assert json.loads(stats.read_text())["antialiasing"]["samples"] == 4
+    # the same through --set, beside a transparency setting; --samples, given too, wins
+    assert main([*args, "--set", "antialiasing.samples=2", "--set", "threshold=0.9", "--stats", str(stats)]) == 0
+    aa = json.loads(stats.read_text())["antialiasing"]
+    assert aa.get("asked", aa["samples"]) == 2  # a device may render more than asked (llvmpipe: 4 for 2)
+    assert main([*args, "--set", "antialiasing.samples=2", "--samples", "1", "--stats", str(stats)]) == 0
+    assert json.loads(stats.read_text())["antialiasing"]["samples"] == 1
     capsys.readouterr()
     assert main([*args, "--samples", "4", "--method", "dfb", "--out", str(tmp_path / "b.png")]) == 2
     err = capsys.readouterr().err

@@ -153,6 +153,46 @@ def test_bad_option_exits_2_naming_it(tmp_path, capsys, args, needles):
     expect_error(rc, err, *needles)
 
 
+@pytest.mark.parametrize(
+    "args,needles",
+    [
+        (["--samples", 16], ["--samples:", "'antialiasing.samples'", "must be one of 1, 2, 4, 8, got 16"]),
+        (["--set", "threshold=5"], ["--set threshold=5:", "'transparency.threshold'", "must be in (0, 1], got 5"]),
+        (["--set", "antialiasing.samples=3"], ["--set antialiasing.samples=3:", "must be one of 1, 2, 4, 8, got 3"]),
+        (["--set", "antialiasing.foo=1"], ["--set antialiasing.foo=1:", "unknown setting 'foo'", "known: samples"]),
+        (["--set", "nope=1"], ["--set nope=1:", "unknown setting 'nope'", "known: threshold"]),
+        (["--set", "nothing"], ["--set:", "expects KEY=VALUE, got 'nothing'"]),
+        (["--method", "nope"], ["--method:", "unknown transparency method 'nope'", "known: "]),
+    ],
+)
+def test_option_errors_name_the_option_not_the_pipeline_file(tmp_path, capsys, args, needles):
+    """A bad value given on the command line is reported under its option, never under the pipeline file,
+    which does not hold it (it used to read `pipelines/default.yaml: 'antialiasing.samples': ...`)."""
+    s = write(tmp_path / "s.yaml", scene_text(layer(0)))
+    rc, _, err = run([s, "--out", tmp_path / "o.png", *args], capsys)
+    expect_error(rc, err, *needles)
+    assert "default.yaml" not in err and "<input>" not in err, err
+
+
+def test_api_override_errors_name_the_argument(gl_context):
+    """The same for the Python API: a bad method_overrides value or method names the argument."""
+    from guaca_py import Renderer
+    from guaca_py.antialiasing import with_samples
+    from guaca_py.errors import ConfigError
+    from guaca_py.pipeline.config import load_pipeline
+
+    with pytest.raises(ConfigError) as err:
+        Renderer("default", ctx=gl_context, method_overrides={"threshold": 5})
+    assert str(err.value).startswith("method_overrides: 'transparency.threshold': must be in (0, 1]"), err.value
+    with pytest.raises(ConfigError) as err:
+        Renderer("default", ctx=gl_context, method="nope")
+    assert str(err.value).startswith("method: unknown transparency method 'nope'"), err.value
+    with pytest.raises(ConfigError) as err:
+        with_samples(load_pipeline("default"), 3)
+    assert str(err.value).startswith("the samples argument: 'antialiasing.samples'"), err.value
+    assert with_samples(load_pipeline("default"), 4, "x").antialiasing["samples"] == 4
+
+
 def test_frame_beyond_the_device_refused(tmp_path, capsys, gl_context):
     """Wider than the largest render target, or a float target past the storage rule (16384x16384 on llvmpipe)."""
     import math
