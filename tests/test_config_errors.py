@@ -119,6 +119,50 @@ def test_instance_uniform_type_checked():
     assert err.value.line == 12
 
 
+def test_instance_values_outside_the_declared_range_refused():
+    """An alpha of -0.5 used to store every fragment and draw nothing; it is refused with the scene's line."""
+    from guaca_py.materials import MaterialRegistry
+
+    reg = MaterialRegistry()
+    unlit, pbr = reg.get("unlit"), reg.get("pbr")
+    for mat, values, needle in [
+        (unlit, {"alpha": -0.5}, "-0.5 is outside [0, 1], the range material 'unlit' (unlit.json) declares"),
+        (unlit, {"alpha": 2}, "2.0 is outside [0, 1]"),
+        (unlit, {"color": [1, -0.1, 0]}, "[1.0, -0.1, 0.0] is outside [0, inf]"),
+        (pbr, {"roughness": 1.5}, "1.5 is outside [0, 1]"),
+    ]:
+        with pytest.raises(ConfigError) as err:
+            mat.resolve_values(values, ("scene.yaml", 12))
+        assert needle in str(err.value), err.value
+        assert err.value.line == 12 and err.value.key == next(iter(values))
+    # the bounds themselves, and an open upper bound, pass
+    assert unlit.resolve_values({"alpha": 0, "color": [5, 0, 0]})["alpha"] == 0.0
+    assert pbr.resolve_values({"alpha": 1, "roughness": 0})["roughness"] == 0.0
+
+
+@pytest.mark.parametrize(
+    "spec,needle",
+    [
+        ({"type": "float", "default": 2.0, "range": [0, 1]}, "2.0 is outside [0, 1], the range its 'range' declares"),
+        ({"type": "float", "range": [1, 0]}, "'range' must be [low, high] with low <= high"),
+        ({"type": "float", "range": [0]}, "'range' must be [low, high]"),
+        ({"type": "float", "range": ["0", 1]}, "'range' must be [low, high]"),
+        ({"type": "sampler2D", "range": [0, 1]}, "a sampler2D uniform has no range"),
+        ({"type": "float", "defualt": 0.5}, "unknown key 'defualt' in uniform 'u'"),
+    ],
+)
+def test_material_uniform_range_and_keys_checked(tmp_path, spec, needle):
+    """A material declares each uniform's range (either bound may be null); a bad range, a default outside
+    it, or a misspelt key is refused with the material file's line."""
+    p = _material(tmp_path, '{\n  "name": "x",\n  "uniforms": {\n    "u": ' + json.dumps(spec) + "\n  }\n}")
+    with pytest.raises(ConfigError) as err:
+        load_material(p)
+    assert needle in str(err.value) and err.value.line == 4 and err.value.key == "u", err.value
+    open_top = {"type": "vec2", "default": [3, 0], "range": [0, None]}
+    ok = load_material(_material(tmp_path, {"name": "y", "uniforms": {"v": open_top}}))
+    assert ok.uniforms["v"].range == (0.0, None)
+
+
 def test_transparency_decided_from_material():
     from guaca_py.materials import MaterialRegistry
 

@@ -18,6 +18,7 @@ MAX_SAMPLERS = 23
 UNIFORM_SIZES = {"float": 1, "int": 1, "vec2": 2, "vec3": 3, "vec4": 4, "mat4": 16, "sampler2D": 0}
 STAGES = ("displacement", "visibility")
 _TOP_KEYS = {"name", "description", "uniforms", "displacement", "visibility", "transparent"}
+_SPEC_KEYS = {"type", "default", "range"}
 _ALPHA_WRITE = re.compile(r"\bgua_alpha\s*([-+*/]?=)(?!=)\s*([^;]*);")
 _IDENT = re.compile(r"^[A-Za-z_]\w*$")
 _LITERAL_ONE = re.compile(r"^\(?\s*1(\.0*)?f?\s*\)?$")
@@ -34,6 +35,7 @@ class UniformSpec:
     name: str
     type: str
     default: object
+    range: tuple[float | None, float | None] | None = None  # every component's bounds (None: open)
 
     def glsl_decl(self) -> str:
         """GLSL declaration of this uniform."""
@@ -112,7 +114,9 @@ class MaterialDescription:
                     key,
                     f"known uniforms: {', '.join(self.uniforms) or 'none'}",
                 )
-            out[key] = check_value(self.uniforms[key].type, value, file, line, key)
+            spec = self.uniforms[key]
+            value = check_value(spec.type, value, file, line, key)
+            out[key] = check_range(spec, value, file, line, f"material '{self.name}' ({Path(self.path).name})")
         return out
 
 
@@ -151,6 +155,44 @@ def check_value(typ: str, value, file, line, key):
     if arr is None or arr.size != size or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in arr):
         raise ConfigError(f"expected {typ} ({size} numbers), got {value!r}", file, line, key)
     return [float(v) for v in arr]
+
+
+def _bound_text(r: tuple[float | None, float | None]) -> str:
+    lo, hi = r
+    return f"[{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}]"
+
+
+def check_range(spec: UniformSpec, value, file, line, declared_by: str = "the material"):
+    """`value` (already type-checked) when every component lies in the uniform's declared range."""
+    if spec.range is None:
+        return value
+    lo, hi = spec.range
+    for v in value if isinstance(value, list) else [value]:
+        if (lo is not None and v < lo) or (hi is not None and v > hi):
+            raise ConfigError(
+                f"{value!r} is outside {_bound_text(spec.range)}, the range {declared_by} declares for it",
+                file,
+                line,
+                spec.name,
+            )
+    return value
+
+
+def _parse_range(raw, typ: str, path: Path, line: int, uname: str) -> tuple[float | None, float | None]:
+    """A uniform's `"range": [lo, hi]` (either bound may be null); only numeric uniforms have one."""
+    ok = isinstance(raw, list) and len(raw) == 2
+    ok = ok and all(b is None or (isinstance(b, (int, float)) and not isinstance(b, bool)) for b in raw)
+    if typ == "sampler2D" or not ok or (None not in raw and raw[0] > raw[1]):
+        raise ConfigError(
+            f"'range' must be [low, high] with low <= high (null: no bound), got {raw!r}"
+            if typ != "sampler2D"
+            else "a sampler2D uniform has no range",
+            path,
+            line,
+            uname,
+            'e.g. "range": [0, 1]; every component of a vector is checked against it',
+        )
+    return (None if raw[0] is None else float(raw[0]), None if raw[1] is None else float(raw[1]))
 
 
 def _read_text(p: Path, cite: Path, line: int | None, key: str | None) -> str:
@@ -284,13 +326,21 @@ def load_material(path: str | Path) -> MaterialDescription:
             )
         if not isinstance(spec, dict) or spec.get("type") not in UNIFORM_SIZES:
             raise ConfigError(f"uniform needs a 'type' out of {', '.join(UNIFORM_SIZES)}", path, line, uname)
+        extra = sorted(set(spec) - _SPEC_KEYS)
+        if extra:  # a misspelt "default" would otherwise leave the uniform at zero without a word
+            raise ConfigError(
+                f"unknown key '{extra[0]}' in uniform '{uname}'", path, line, uname, "known: type, default, range"
+            )
         default = spec.get(
             "default",
             "white"
             if spec["type"] == "sampler2D"
             else (0.0 if UNIFORM_SIZES[spec["type"]] == 1 else [0.0] * UNIFORM_SIZES[spec["type"]]),
         )
-        uniforms[uname] = UniformSpec(uname, spec["type"], check_value(spec["type"], default, path, line, uname))
+        bounds = _parse_range(spec["range"], spec["type"], path, line, uname) if "range" in spec else None
+        u = UniformSpec(uname, spec["type"], check_value(spec["type"], default, path, line, uname), bounds)
+        uniforms[uname] = u
+        check_range(u, u.default, path, line, "its 'range'")  # the default too
         if spec["type"] == "sampler2D" and sum(u.type == "sampler2D" for u in uniforms.values()) > MAX_SAMPLERS:
             raise ConfigError(
                 f"more than {MAX_SAMPLERS} sampler2D uniforms",
