@@ -21,13 +21,10 @@ class ConfigError(GuacaError):
         hint: str | None = None,
     ):
         self.reason, self.file, self.line, self.key, self.hint = reason, file, line, key, hint
-        if file is None and key and key.startswith("-"):
-            msg = f"{key}: "  # a command-line option is its own location
+        if file is None:  # an argument or command-line option: the key is the location
+            msg = "" if not key else f"{key}: " if key.startswith("-") else f"'{key}': "
         else:
-            where = str(file) if file is not None else "<input>"
-            if line is not None:
-                where += f":{line}"
-            msg = f"{where}: " + (f"'{key}': " if key else "")
+            msg = f"{file}{'' if line is None else f':{line}'}: " + (f"'{key}': " if key else "")
         msg += reason
         if hint:
             msg += f" ({hint})"

@@ -163,6 +163,7 @@ def test_bad_option_exits_2_naming_it(tmp_path, capsys, args, needles):
         (["--set", "nope=1"], ["--set nope=1:", "unknown setting 'nope'", "known: threshold"]),
         (["--set", "nothing"], ["--set:", "expects KEY=VALUE, got 'nothing'"]),
         (["--method", "nope"], ["--method:", "unknown transparency method 'nope'", "known: "]),
+        (["--pipeline", "nope"], ["'pipeline': no built-in pipeline 'nope' and no such file", "default, exact"]),
     ],
 )
 def test_option_errors_name_the_option_not_the_pipeline_file(tmp_path, capsys, args, needles):

@@ -138,11 +138,9 @@ def load_pipeline(spec: str | Path | PipelineConfig = "default") -> PipelineConf
         p = builtin_pipeline(str(spec))
         if not p.is_file():
             raise ConfigError(
-                f"no built-in pipeline '{spec}'",
-                None,
-                None,
-                None,
-                "give a path to a .yaml file or one of: default, exact",
+                f"no built-in pipeline '{spec}' and no such file",
+                key="pipeline",
+                hint="give a path to a .yaml file or one of: default, exact",
             )
     return parse_pipeline(load_yaml_file(p))
 
