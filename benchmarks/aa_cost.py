@@ -1,7 +1,8 @@
 """What anti-aliasing costs, pass by pass: the default pipeline at 1 and N samples per scene and path.
 
 Usage: python benchmarks/aa_cost.py OUTDIR --scenes DIR [--scene-names NAME ...] [--size 1024]
-                                   [--samples 1 4] [--raster auto hardware compute/mesh] [--paths default 32bit]
+                                   [--samples 1 4] [--merge off adjacent]
+                                   [--raster auto hardware compute/mesh] [--paths default 32bit]
                                    [--warmup-s 1.5] [--frames 8] [--small-area 128 32]
                                    [--small-fragments 8 1e9] [--method presort_lf]
 For every scene, rasterizer (`transparency.raster`) and A-buffer insertion path (`default`: the
@@ -31,7 +32,7 @@ sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
 from paper_table import progress, time_frames  # noqa: E402
 
 from guaca_py import GuacaError, Renderer  # noqa: E402
-from guaca_py.antialiasing import with_samples  # noqa: E402
+from guaca_py.antialiasing import with_settings  # noqa: E402
 from guaca_py.context import create_context  # noqa: E402
 from guaca_py.pipeline.config import load_pipeline  # noqa: E402
 from guaca_py.raster.compute_raster import SMALL_AREA, SMALL_FRAGMENTS  # noqa: E402
@@ -51,13 +52,14 @@ def run(args) -> list[dict]:
             bounds = [(a, f) for a in args.small_area for f in args.small_fragments]
             for raster, (small, fragments) in [(r, b) for r in args.raster for b in bounds]:
                 label = raster if bounds == [(SMALL_AREA, SMALL_FRAGMENTS)] else f"{raster} s{small} f{fragments:g}"
-                for n in args.samples:
+                for n, merge in [(n, m) for n in args.samples for m in args.merge if n > 1 or m == "off"]:
                     row = {"scene": name, "path": caps.insertion_path, "rasterizer": label, "samples": n}
+                    row["merge"] = merge
                     try:
                         kind, _, order = raster.partition("/")  # compute/ORDER: with that raster_order
                         overrides = {"raster": kind, **({"raster_order": order} if order else {})}
                         r = Renderer(
-                            with_samples(load_pipeline("default"), n),
+                            with_settings(load_pipeline("default"), {"samples": n, "merge": merge}, "aa_cost"),
                             ctx=ctx,
                             method=args.method,
                             method_overrides=overrides,
@@ -75,7 +77,7 @@ def run(args) -> list[dict]:
                         continue
                     passes = ", ".join(f"{k} {v:.3f}" for k, v in row["passes_ms"].items())
                     progress(
-                        f"  {name:20s} {caps.insertion_path} {label:8s} x{n}: {row['total_ms']:8.3f} ms "
+                        f"  {name:20s} {caps.insertion_path} {label:8s} x{n}{' merged' if merge != 'off' else ''}: {row['total_ms']:8.3f} ms "
                         f"({passes}) stored {row['fragments'].get('stored')} clock {row['clock']}"
                     )
         ctx.release()
@@ -94,7 +96,8 @@ def markdown(rows: list[dict], command: str) -> str:
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
-        head = f"| {r['scene']} | {r['path']} | {r['rasterizer']} | {r['samples']} |"
+        merged = " merged" if r.get("merge", "off") != "off" else ""
+        head = f"| {r['scene']} | {r['path']} | {r['rasterizer']} | {r['samples']}{merged} |"
         if "skipped" in r:
             out.append(f"{head} skipped: {r['skipped']} | | | | | |")
             continue
@@ -143,6 +146,9 @@ def main(argv=None) -> int:
         help="auto, hardware, compute or compute/ORDER (with raster_order ORDER)",
     )
     ap.add_argument("--paths", nargs="*", default=["default"], choices=list(PATHS))
+    ap.add_argument(
+        "--merge", nargs="*", default=["off"], choices=["off", "adjacent"], help="antialiasing.merge at N > 1 samples"
+    )
     ap.add_argument("--small-area", nargs="*", type=int, default=[SMALL_AREA], help="one-thread box bounds (px)")
     ap.add_argument(
         "--small-fragments", nargs="*", type=float, default=[SMALL_FRAGMENTS], help="one-thread area bounds (px²)"

@@ -3,7 +3,9 @@
 Usage: python benchmarks/accuracy_scenes.py OUTDIR --scenes DIR [--size 1024] [--ref-k 8] [--tile 2048]
                                            [--frames 5] [--warmup 2] [--warmup-s 1.5] [--budget-s 3]
                                            [--scene-budget-s S] [--methods ID ...] [--samples 1 2 4 8]
-                                           [--scene-names NAME ...] [--replot]
+                                           [--scene-names NAME ...] [--no-merged] [--replot]
+With 4 among the sample counts, a row `presort_lf_et x4 merged` adds antialiasing.merge: adjacent
+(through the compute rasterizer; approximate: merged samples take one triangle's shading).
 Each scene (DIR/*.yaml) renders through guaca_py.accuracy.linear_pipeline: light culling as in
 the default pipeline, no tone mapping or FXAA (linear output), threshold 0.999 for every method, so
 exact methods differ from the reference by their aliasing alone. Reference: presort_lf (exact, no
@@ -50,13 +52,18 @@ REFERENCE_METHOD = "presort_lf"  # exact without early termination
 HOLD_S = 0.3  # shortest sampled window of a timed configuration (the clock sampler polls every 100 ms)
 
 
-def configs(caps, methods: list[str] | None, samples: list[int]) -> list[tuple[str, str, int, dict]]:
+def configs(
+    caps, methods: list[str] | None, samples: list[int], merged: bool = True
+) -> list[tuple[str, str, int, dict]]:
     """(label, method, samples, overrides): the default at each sample count (`raster: auto`: the compute
-    rasterizer on a GPU, with coverage masks), the same through the hardware rasterizer at 1 and 4
-    samples, then every other method the device runs at 1 sample.
+    rasterizer on a GPU, with coverage masks), the same with antialiasing.merge: adjacent at 4 samples
+    (through the compute rasterizer, which merges; `merge` in the overrides is the pipeline's), the same
+    through the hardware rasterizer at 1 and 4 samples, then every other method the device runs at 1 sample.
     The sample counts come first: a scene's time budget cuts the method list, not the anti-aliasing result."""
     ids = methods or [m for m in method_ids() if method_class(m).unsupported_reason(caps) is None]
     out = [(f"{AA_METHOD} x{n}", AA_METHOD, n, {}) for n in samples]
+    if merged and 4 in samples:
+        out.append((f"{AA_METHOD} x4 merged", AA_METHOD, 4, {"merge": "adjacent", "raster": "compute"}))
     out += [(f"{AA_METHOD} hw x{n}", AA_METHOD, n, {"raster": "hardware"}) for n in (1, 4) if n in samples]
     return out + [(m, m, 1, {}) for m in ids if m != AA_METHOD]
 
@@ -169,15 +176,24 @@ def run_scene(ctx, caps, path: Path, args, pool) -> dict:
         )
 
     def renderer(n: int, mid: str, overrides: dict):
-        return lambda: Renderer(linear_pipeline(n), ctx=ctx, method=mid, method_overrides=overrides or None)
+        settings = {k: v for k, v in overrides.items() if k != "merge"}
+        pipeline = linear_pipeline(n, merge=overrides.get("merge", "off"))
+        return lambda: Renderer(pipeline, ctx=ctx, method=mid, method_overrides=settings or None)
 
     rows = config_rows(
         (
             (
-                {"label": label, "method": mid, "samples": n, "exact": method_class(mid).exact, "settings": overrides},
+                {
+                    "label": label,
+                    "method": mid,
+                    "samples": n,
+                    # merged samples take the shading of the triangle at the pixel centre: not exact
+                    "exact": method_class(mid).exact and "merge" not in overrides,
+                    "settings": overrides,
+                },
                 renderer(n, mid, overrides),
             )
-            for label, mid, n, overrides in configs(caps, args.methods, args.samples)
+            for label, mid, n, overrides in configs(caps, args.methods, args.samples, not args.no_merged)
         ),
         measure_row,
         report,
@@ -362,6 +378,7 @@ def main(argv=None) -> int:
     )
     ap.add_argument("--methods", nargs="*", help="methods at 1 sample (default: every method the device runs)")
     ap.add_argument("--samples", nargs="*", type=int, default=[1, 2, 4, 8], help=f"sample counts of {AA_METHOD}")
+    ap.add_argument("--no-merged", action="store_true", help="leave out the 4-sample row with antialiasing.merge")
     ap.add_argument("--flip-workers", type=int, default=max(1, (os.cpu_count() or 2) // 2), help="0: inline")
     ap.add_argument("--replot", action="store_true", help="rebuild tables and charts from OUTDIR/*/accuracy.json")
     args = ap.parse_args(argv)

@@ -28,6 +28,8 @@
 # k1: Table 1 and the anti-aliasing cost with stage times on four scenes (~3 min); k2: the suite and the
 #    dragons' temporal stability (~4 min); both first ran at 82f719b, with a rule for `auto`'s depth
 #    direction that was reverted after (benchmarks/results/h100/adaptive_order_1c671c8/)
+# merge: the suite, antialiasing.merge: adjacent against unmerged 4 samples on every real scene (cost, stages),
+#    then benchmarks/aa_merge.py's stored fragments and error on the dragons and Sponza v1 (~6 min)
 # order: the suite, then the compute rasterizer's triangle orders (depth, mesh, tile) per method and
 #    scene (benchmarks/results/h100/raster_order/orders.md)
 set -uo pipefail
@@ -137,6 +139,17 @@ elif [[ $part == k2 ]]; then
   suite
   PART=stability PART_S=200 SCENES_SUBSET="dragons" bash benchmarks/aa_gpu_run.sh "$work/aa" > "$work/aa_stability.txt" 2>&1
   tail -6 "$work/aa_stability.txt"
+elif [[ $part == merge ]]; then
+  # antialiasing.merge: adjacent (not yet run on a GPU): the suite (its setup kernels build on NVIDIA),
+  # the 4-sample cost merged and not on every real scene, then the dragons' and Sponza v1's error
+  suite
+  GUACA_RASTER_STAGES=1 timeout 200 python3 benchmarks/aa_cost.py "$work/aa_merge_cost" --scenes .scenes \
+    --scene-names dragons sponza_dabrovic_v1 sponza_dabrovic_v2 hairball_v1 hairball_v2 --samples 1 4 \
+    --merge off adjacent 2>&1 | tail -1
+  grep -E "^\| (dragons|sponza|hairball)" "$work/aa_merge_cost/aa_cost.md" | head -15
+  pack
+  timeout 200 python3 benchmarks/aa_merge.py "$work/aa_merge" --scenes .scenes \
+    --scene-names dragons sponza_dabrovic_v1 2>&1 | tail -8
 elif [[ $part == order ]]; then
   timeout 200 python3 -m pytest -q -p no:cacheprovider tests > "$work/pytest_gpu.txt" 2>&1
   tail -3 "$work/pytest_gpu.txt"

@@ -115,14 +115,15 @@ def flip(image: np.ndarray, reference: np.ndarray) -> float | None:
     return float(mean)
 
 
-def linear_pipeline(samples: int = 1, threshold: float = 0.999, light_culling: str = "auto"):
-    """The accuracy benchmarks' pipeline: pipelines/exact with culled lights, linear output, `samples` per pixel."""
+def linear_pipeline(samples: int = 1, threshold: float = 0.999, light_culling: str = "auto", merge: str = "off"):
+    """The accuracy benchmarks' pipeline: pipelines/exact with culled lights, linear output, `samples` per pixel
+    (`merge`: antialiasing.merge)."""
     from .pipeline.config import pipeline_from_text
 
     return pipeline_from_text(
         f"name: linear_aa{samples}\n"
         f"transparency: {{method: presort_lf_et, threshold: {threshold}, budget_mb: auto}}\n"
-        f"antialiasing: {{samples: {samples}}}\n"
+        f"antialiasing: {{samples: {samples}, merge: {merge}}}\n"
         f"passes: [geometry, {{light_culling: {{mode: {light_culling}}}}}, composite]\n",
         f"<linear pipeline, {samples} samples>",
     )

@@ -22,6 +22,13 @@ SETTINGS = {
         "samples per pixel: 1 (no MSAA) or 2/4/8 (multisampled G-buffer, coverage-aware A-buffer)",
         choices=SAMPLE_COUNTS,
     ),
+    "merge": Setting(
+        (str,),
+        "off",
+        "adjacent: samples of a pixel that the triangle covering its centre shares an edge with covers "
+        "join that triangle's node (fewer nodes, shaded once; compute-rasterized draws only)",
+        choices=("off", "adjacent"),
+    ),
 }
 # Every node packs its mask into the free upper 16 bits of payload word 6 (common/payload_pack):
 # the node keeps its size, so memory per fragment is unchanged by antialiasing.

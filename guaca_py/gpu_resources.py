@@ -75,6 +75,7 @@ class MeshCache(_FrameCache):
         super().__init__(keep_frames)
         self.ctx = ctx
         self._buffers: dict[str, tuple] = {}
+        self._adjacency: dict[str, object] = {}
         self._vaos: dict[str, dict[int, object]] = {}
         self.uploads = 0  # meshes uploaded so far (tests and stats: work proportional to change)
 
@@ -90,6 +91,17 @@ class MeshCache(_FrameCache):
             )
             self.uploads += 1
         return self._buffers[key]
+
+    def adjacency(self, mesh):
+        """uint32 buffer of each triangle's edge neighbours' apexes (raster/adjacency.py), by content, built on first use."""
+        from .raster.adjacency import edge_apexes
+
+        key = mesh_digest(mesh)
+        self._touch(key)
+        buf = self._adjacency.get(key)
+        if buf is None:
+            buf = self._adjacency[key] = self.ctx.buffer(edge_apexes(mesh.indices).tobytes())
+        return buf
 
     def vao(self, mesh, prog):
         """VAO drawing `mesh` with `prog` (attributes the program does not use are skipped)."""
@@ -109,7 +121,7 @@ class MeshCache(_FrameCache):
     def _free(self, key) -> None:
         for v in self._vaos.pop(key, {}).values():
             v.release()
-        for b in self._buffers.pop(key, ()):
+        for b in (*self._buffers.pop(key, ()), *([self._adjacency.pop(key)] if key in self._adjacency else [])):
             b.release()
 
 

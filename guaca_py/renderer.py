@@ -111,6 +111,9 @@ class Renderer:
         # where those samples lie (the compute rasterizer tests coverage there): the probe that
         # counted them, cached; made here, as it binds a framebuffer and a storage buffer of its own
         self.sample_positions = antialiasing.sample_positions(self.ctx, asked, self.shaders) if asked > 1 else ()
+        # antialiasing.merge: adjacent triangles' samples join the node of the one covering the pixel
+        # centre (the compute rasterizer's setup stage; nothing to merge with one sample)
+        self.aa_merge = self.samples > 1 and self.config.antialiasing["merge"] == "adjacent"
         self.materials = MaterialRegistry(material_paths)
         self.meshes = MeshCache(self.ctx)
         self.textures = TextureCache(self.ctx)

@@ -71,6 +71,8 @@ class GeometryPass(Pass):
         frame.resources["gbuffer"] = g
         asked = self.renderer.config.antialiasing["samples"]
         frame.stats["antialiasing"] = {"samples": self._samples, **({"asked": asked} if asked != self._samples else {})}
+        if self.renderer.aa_merge:
+            frame.stats["antialiasing"]["merge"] = "adjacent"
         frame.stats.setdefault("memory", {})["gbuffer"] = frame.pixel_count * (3 * 8 + 4) * self._samples
         method = self.renderer.method
         has_transparency = bool(frame.transparent_draws)
@@ -89,6 +91,12 @@ class GeometryPass(Pass):
         if frame.transparent_draws and not method.geometry_in_composite:
             frame.rerender = method.finish(frame)
             frame.rerender = self.renderer.raster.finish(frame) or frame.rerender
+        hardware = frame.stats.get("raster", {}).get("hardware_draws", 0)
+        if self.renderer.aa_merge and hardware:  # the hardware path keeps a node per triangle and pixel
+            frame.stats.setdefault("warnings", []).append(
+                f"antialiasing.merge: adjacent applies to compute-rasterized draws; {hardware} transparent draws "
+                "went through the hardware rasterizer unmerged (transparency.raster: compute merges them)"
+            )
 
     def release(self) -> None:
         """Free the G-buffer."""

@@ -199,6 +199,7 @@ class ComputeRasterizer:
             self.small_area,
             self.small_fragments,
             self.medium_area,
+            self.renderer.aa_merge,
         )
         hit = self._program_sets.get(key)
         if hit is not None:
@@ -227,6 +228,7 @@ class ComputeRasterizer:
                     **self._raster_vars(),
                     **mvars,
                     compute_raster=True,
+                    aa_merge=self.renderer.aa_merge,  # antialiasing.merge: adjacent (setup stage)
                     raster_stage=stage,  # the triangle record's layout is chosen per kernel
                     frag_xy="gua_frag_xy",
                     tc_derivatives=cm.tc_derivatives,
@@ -423,6 +425,8 @@ class ComputeRasterizer:
             vbo, ibo = r.meshes.buffers(d.mesh)
             vbo.bind_to_storage_buffer(9)
             ibo.bind_to_storage_buffer(10)
+            if r.aa_merge:  # each triangle's edge neighbours (raster/adjacency.py), built once per mesh
+                r.meshes.adjacency(d.mesh).bind_to_storage_buffer(7)
             for prog in kernels:
                 if prog.glo in ready:
                     continue
