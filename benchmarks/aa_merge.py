@@ -1,10 +1,10 @@
 """What antialiasing.merge: adjacent saves and costs: stored fragments, error and time against unmerged samples.
 
 Usage: python benchmarks/aa_merge.py OUTDIR --scenes DIR [--scene-names dragons ...] [--size 1024]
-                                     [--ref-k 8] [--tile 2048] [--frames 5] [--warmup-s 1.5]
+                                     [--ref-k 8] [--tile 2048] [--frames 5] [--warmup-s 1.5] [--crease 15 ...]
 Per scene, through the compute rasterizer (which merges; `transparency.raster: compute`, as `auto`
 takes on a GPU) in guaca_py.accuracy.linear_pipeline: presort_lf_et at 1 sample, at 4 samples and
-at 4 samples merged. Error against the exact frame at --ref-k x the resolution, box filtered (as
+at 4 samples merged (at each --crease limit, antialiasing.merge_crease_deg). Error against the exact frame at --ref-k x the resolution, box filtered (as
 benchmarks/accuracy_scenes.py): RMSE and edge RMSE in 1/255, FLIP where flip-evaluator is installed.
 Time: the median of --frames frames' per-pass times after --warmup-s seconds of untimed frames (GPU
 timer queries on a GPU, with the SM clock; wall time on software rasterizers, which are not
@@ -27,10 +27,15 @@ from paper_table import progress, time_frames  # noqa: E402
 
 from guaca_py import Renderer  # noqa: E402
 from guaca_py.accuracy import edge_pixels, flip, linear_pipeline, rmse_255, supersampled  # noqa: E402
+from guaca_py.antialiasing import with_settings  # noqa: E402
 from guaca_py.context import create_context  # noqa: E402
 from guaca_py.scene.loader import load_scene  # noqa: E402
 
-CONFIGS = (("1 sample", 1, "off"), ("4 samples", 4, "off"), ("4 samples, merged", 4, "adjacent"))
+
+def configs(creases: list[float]) -> list[tuple[str, int, str, float]]:
+    """(label, samples, merge, merge_crease_deg): 1 and 4 samples, then 4 merged at each crease limit."""
+    out = [("1 sample", 1, "off", 15.0), ("4 samples", 4, "off", 15.0)]
+    return out + [(f"4 samples, merged, crease {c:g}°", 4, "adjacent", c) for c in creases]
 
 
 def run_scene(ctx, caps, path: Path, args) -> dict:
@@ -45,19 +50,16 @@ def run_scene(ctx, caps, path: Path, args) -> dict:
         f"{path.stem}: reference {args.ref_k}x in {time.perf_counter() - t0:.1f} s, edge pixels {edges.mean():.1%}"
     )
     rows = []
-    for label, samples, merge in CONFIGS:
-        r = Renderer(
-            linear_pipeline(samples, merge=merge),
-            ctx=ctx,
-            method="presort_lf_et",
-            method_overrides={"raster": "compute"},
-        )
+    for label, samples, merge, crease in configs(args.crease):
+        pipeline = with_settings(linear_pipeline(samples, merge=merge), {"merge_crease_deg": crease}, "aa_merge")
+        r = Renderer(pipeline, ctx=ctx, method="presort_lf_et", method_overrides={"raster": "compute"})
         timing = time_frames(r, scene, args.size, args.warmup_s if caps.gpu_timers else 0.0, args.frames)
         frame = r.render(scene, args.size, args.size)
         row = {
             "label": label,
             "samples": r.samples,
             "merge": merge,
+            "merge_crease_deg": crease if merge != "off" else None,
             "ms": timing["total_ms"],
             "passes_ms": timing["passes_ms"],
             "clock": timing.get("clock"),
@@ -70,7 +72,7 @@ def run_scene(ctx, caps, path: Path, args) -> dict:
         r.release()
         rows.append(row)
         progress(
-            f"  {label:18s} {row['ms']:9.3f} ms  stored {row['stored']:>9}  RMSE {row['rmse_255']:.2f}  "
+            f"  {label:32s} {row['ms']:9.3f} ms  stored {row['stored']:>9}  RMSE {row['rmse_255']:.2f}  "
             f"edge {row['edge_rmse_255']:.2f}"
         )
     return {"scene": path.stem, "size": args.size, "ref_k": args.ref_k, "edge_pixels": int(edges.sum()), "rows": rows}
@@ -91,15 +93,14 @@ def markdown(records: list[dict], command: str, device: str, timer: str) -> str:
                 f"| {r['label']} | {r['ms']:.3f} | {r['ms'] / one['ms']:.2f}x | {r['stored']} | "
                 f"{r['stored'] / max(1, one['stored']):.2f}x | {r['rmse_255']:.2f} | {r['edge_rmse_255']:.2f} | {fl} |"
             )
-        merged = rec["rows"][2]
-        out += [
-            "",
-            f"Merging stores {merged['stored'] / max(1, four['stored']):.0%} of the unmerged 4-sample fragments; "
-            f"edge RMSE {one['edge_rmse_255']:.2f} / {four['edge_rmse_255']:.2f} / {merged['edge_rmse_255']:.2f} "
-            f"at 1 / 4 / 4 merged ({one['edge_rmse_255'] / four['edge_rmse_255']:.2f}x and "
-            f"{one['edge_rmse_255'] / merged['edge_rmse_255']:.2f}x lower than 1 sample).",
-            "",
-        ]
+        out.append("")
+        for merged in rec["rows"][2:]:
+            out.append(
+                f"- {merged['label']}: {merged['stored'] / max(1, four['stored']):.0%} of the unmerged 4-sample "
+                f"fragments; edge RMSE {one['edge_rmse_255'] / merged['edge_rmse_255']:.2f}x lower than 1 sample "
+                f"(unmerged: {one['edge_rmse_255'] / four['edge_rmse_255']:.2f}x)."
+            )
+        out.append("")
     return "\n".join(out)
 
 
@@ -113,6 +114,7 @@ def main(argv=None) -> int:
     ap.add_argument("--tile", type=int, default=2048)
     ap.add_argument("--frames", type=int, default=5)
     ap.add_argument("--warmup-s", type=float, default=1.5)
+    ap.add_argument("--crease", nargs="*", type=float, default=[15.0], help="merge_crease_deg of the merged rows")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     ctx, caps = create_context(None)

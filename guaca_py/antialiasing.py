@@ -29,6 +29,13 @@ SETTINGS = {
         "join that triangle's node (fewer nodes, shaded once; compute-rasterized draws only)",
         choices=("off", "adjacent"),
     ),
+    "merge_crease_deg": Setting(
+        (int, float),
+        15.0,
+        "merge: adjacent joins two triangles only where the surface bends by at most this many degrees "
+        "between them (a merged sample takes the other triangle's shading)",
+        check=lambda v: None if 0 < v <= 180 else f"must be in (0, 180], got {v}",
+    ),
 }
 # Every node packs its mask into the free upper 16 bits of payload word 6 (common/payload_pack):
 # the node keeps its size, so memory per fragment is unchanged by antialiasing.

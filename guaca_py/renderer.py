@@ -114,6 +114,7 @@ class Renderer:
         # antialiasing.merge: adjacent triangles' samples join the node of the one covering the pixel
         # centre (the compute rasterizer's setup stage; nothing to merge with one sample)
         self.aa_merge = self.samples > 1 and self.config.antialiasing["merge"] == "adjacent"
+        self.aa_merge_crease_deg = float(self.config.antialiasing["merge_crease_deg"])
         self.materials = MaterialRegistry(material_paths)
         self.meshes = MeshCache(self.ctx)
         self.textures = TextureCache(self.ctx)
