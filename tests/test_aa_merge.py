@@ -135,14 +135,15 @@ def test_lit_surfaces_keep_the_edge_antialiasing(render, renderer_factory):
     assert err[4, "adjacent"] <= 1.1 * err[4, "off"] and err[4, "adjacent"] * 2 <= err[1, "off"], err
 
 
-def test_no_merging_where_something_opaque_is_drawn(render):
-    """A per-sample opaque test would be skipped for the merged samples: with an opaque draw the frame
-    stores a node per triangle and pixel, as without merging, and renders alike."""
+def test_merging_beside_opaque_draws(render):
+    """Merged samples take the opaque test at the merging triangle's plane: behind the opaque quad they
+    are hidden as unmerged ones are; only where a sphere crosses the quad may a sample differ."""
     scene = spheres(flat, opaque=True)
     exact, s_exact = render(scene, 64, 4, "off")
     merged, s_merged = render(scene, 64, 4, "adjacent")
-    assert s_merged["fragments"]["stored"] == s_exact["fragments"]["stored"]
-    assert np.abs(merged - exact).max() < 1e-6
+    assert s_merged["fragments"]["stored"] < 0.8 * s_exact["fragments"]["stored"]
+    diff = np.abs(merged - exact).max(axis=-1)
+    assert (diff > 1e-6).sum() <= 0.005 * diff.size and diff.max() < 0.1, ((diff > 1e-6).sum(), diff.max())
 
 
 def test_a_sharper_crease_limit_merges_less(render):
