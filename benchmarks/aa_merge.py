@@ -8,7 +8,8 @@ at 4 samples merged (at each --crease limit, antialiasing.merge_crease_deg). Err
 benchmarks/accuracy_scenes.py): RMSE and edge RMSE in 1/255, FLIP where flip-evaluator is installed.
 Time: the median of --frames frames' per-pass times after --warmup-s seconds of untimed frames (GPU
 timer queries on a GPU, with the SM clock; wall time on software rasterizers, which are not
-performance figures). Writes OUTDIR/aa_merge.{json,md}.
+performance figures). Writes OUTDIR/aa_merge.{json,md} and OUTDIR/<scene>_crops.png (the window with the
+most edge pixels in the reference, at 1 and 4 samples and merged, enlarged).
 """
 
 from __future__ import annotations
@@ -19,6 +20,8 @@ import shlex
 import sys
 import time
 from pathlib import Path
+
+import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
@@ -49,7 +52,7 @@ def run_scene(ctx, caps, path: Path, args) -> dict:
     progress(
         f"{path.stem}: reference {args.ref_k}x in {time.perf_counter() - t0:.1f} s, edge pixels {edges.mean():.1%}"
     )
-    rows = []
+    rows, images = [], {}
     for label, samples, merge, crease in configs(args.crease):
         pipeline = with_settings(linear_pipeline(samples, merge=merge), {"merge_crease_deg": crease}, "aa_merge")
         r = Renderer(pipeline, ctx=ctx, method="presort_lf_et", method_overrides={"raster": "compute"})
@@ -71,11 +74,37 @@ def run_scene(ctx, caps, path: Path, args) -> dict:
         }
         r.release()
         rows.append(row)
+        images[label] = frame.linear
         progress(
             f"  {label:32s} {row['ms']:9.3f} ms  stored {row['stored']:>9}  RMSE {row['rmse_255']:.2f}  "
             f"edge {row['edge_rmse_255']:.2f}"
         )
+    crops(args.out / f"{path.stem}_crops.png", ref.image, edges, images, rows)
     return {"scene": path.stem, "size": args.size, "ref_k": args.ref_k, "edge_pixels": int(edges.sum()), "rows": rows}
+
+
+def crops(path: Path, reference, edges, images: dict, rows: list[dict], side: int = 96, zoom: int = 4) -> None:
+    """A picture to look at: the window of `side` px with the most edge pixels, in the reference, at 1 sample,
+    at 4 samples and merged (the first crease limit), each enlarged `zoom` times and labelled with its error."""
+    from PIL import Image, ImageDraw
+
+    from guaca_py.accuracy import srgb
+
+    sums = np.pad(edges.astype(np.int64).cumsum(0).cumsum(1), ((1, 0), (1, 0)))
+    windows = sums[side:, side:] - sums[:-side, side:] - sums[side:, :-side] + sums[:-side, :-side]
+    y, x = np.unravel_index(int(np.argmax(windows)), windows.shape)
+    shown = [("reference (8x8 supersampled)", reference, None)] + [
+        (r["label"], images[r["label"]], r) for r in rows[:3]
+    ]
+    tile, caption = side * zoom, 30
+    sheet = Image.new("RGB", (len(shown) * (tile + 8) - 8, tile + caption), (255, 255, 255))
+    draw = ImageDraw.Draw(sheet)
+    for i, (label, img, row) in enumerate(shown):
+        crop = (srgb(img[y : y + side, x : x + side]) * 255 + 0.5).astype(np.uint8)
+        sheet.paste(Image.fromarray(crop).resize((tile, tile), Image.NEAREST), (i * (tile + 8), 0))
+        text = label if row is None else f"{label}: edge RMSE {row['edge_rmse_255']:.2f}, {row['stored']:,} nodes"
+        draw.text((i * (tile + 8) + 2, tile + 8), text, fill=(0, 0, 0))
+    sheet.save(path)
 
 
 def markdown(records: list[dict], command: str, device: str, timer: str) -> str:
