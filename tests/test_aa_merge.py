@@ -179,6 +179,25 @@ def test_a_sharper_crease_limit_merges_less(render):
     assert stored[60.0] < stored[15.0] <= s_exact["fragments"]["stored"], (stored, s_exact["fragments"]["stored"])
 
 
+def test_neighbour_buffers_reported_and_held_to_the_storage_rule(render, renderer_factory, monkeypatch):
+    """The edge neighbours take 12 bytes a triangle, once per mesh content (the two spheres share one), in
+    stats["memory"]; a mesh whose neighbours would pass the device's storage rule is refused by name."""
+    from guaca_py.errors import LimitError
+
+    scene = spheres(flat)
+    _, stats = render(scene, 32, 4, "adjacent")
+    sphere, ramp = scene.nodes[0].mesh, scene.nodes[2].mesh
+    assert stats["memory"]["raster_adjacency"] == 12 * (sphere.triangle_count + ramp.triangle_count)
+    # 20000 triangles on 4 vertices: every other buffer of the frame fits 0.1 MB, the 240 kB of neighbours not
+    quad = quad_mesh(1.0, 1.0)
+    many = MeshData(quad.positions, quad.normals, quad.texcoords, np.tile(quad.indices, (10000, 1)), "many")
+    monkeypatch.setenv("GUACA_MAX_BUFFER_MB", "0.1")
+    r = renderer_factory(with_settings(EXACT, {"samples": 4, "merge": "adjacent"}, "test"), method_overrides=COMPUTE)
+    with pytest.raises(LimitError, match="antialiasing.merge") as err:
+        r.render(Scene(camera=_test_camera(), nodes=[Node("many", Transform(), many, flat((1.0, 0.0, 0.0)))]), 16, 16)
+    assert "12 bytes a triangle" in str(err.value)
+
+
 def test_hardware_rasterized_draws_are_named_unmerged(renderer_factory):
     cfg = with_settings(EXACT, {"samples": 4, "merge": "adjacent"}, "test")
     r = renderer_factory(cfg, method="presort_lf_et", method_overrides={"raster": "hardware"})
