@@ -25,8 +25,8 @@ SETTINGS = {
     "merge": Setting(
         (str,),
         "off",
-        "adjacent: samples of a pixel that the triangle covering its centre shares an edge with covers "
-        "join that triangle's node (fewer nodes, shaded once; compute-rasterized draws only)",
+        "adjacent: the triangle covering a pixel's centre takes into its node the samples its edge "
+        "neighbours cover there (fewer nodes, each shaded once; compute-rasterized draws only)",
         choices=("off", "adjacent"),
     ),
     "merge_crease_deg": Setting(
