@@ -185,7 +185,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--set",
         action="append",
         metavar="KEY=VALUE",
-        help="a transparency setting (e.g. --set budget_mb=1) or antialiasing.samples; repeatable",
+        help="a transparency setting (e.g. --set budget_mb=1) or antialiasing.* (samples, merge, "
+        "merge_crease_deg); repeatable",
     )
     r.add_argument("--width", type=int)
     r.add_argument("--height", type=int)

@@ -121,7 +121,10 @@ class MeshCache(_FrameCache):
     def _free(self, key) -> None:
         for v in self._vaos.pop(key, {}).values():
             v.release()
-        for b in (*self._buffers.pop(key, ()), *([self._adjacency.pop(key)] if key in self._adjacency else [])):
+        buffers = [*self._buffers.pop(key, ())]
+        if key in self._adjacency:
+            buffers.append(self._adjacency.pop(key))
+        for b in buffers:
             b.release()
 
 
