@@ -112,6 +112,18 @@ def test_one_coloured_surfaces_render_as_without_merging(render):
     assert one <= fewer <= 0.75 * four, (one, four, fewer)
 
 
+@pytest.mark.parametrize("method", ["presort_lf", "presort_lf_merge2_et", "presort_cs_et", "post_sort", "post_merge16"])
+def test_every_method_with_coverage_takes_merged_nodes(renderer_factory, method):
+    """Merging happens in the rasterizer, before any method's insertion: the same image with fewer nodes."""
+    scene, out = spheres(flat), {}
+    for merge in ("off", "adjacent"):
+        cfg = with_settings(EXACT, {"samples": 4, "merge": merge}, "test")
+        frame = renderer_factory(cfg, method=method, method_overrides=COMPUTE).render(scene, 48, 48)
+        out[merge] = frame.linear, frame.stats["fragments"]["stored"]
+    assert np.abs(out["adjacent"][0] - out["off"][0]).max() < 1e-6
+    assert out["adjacent"][1] < 0.8 * out["off"][1], (out["adjacent"][1], out["off"][1])
+
+
 def test_lit_surfaces_keep_the_edge_antialiasing(render, renderer_factory):
     """Merged samples take the shading of the triangle at the pixel centre, interpolated at the centroid of
     the node's samples (here: sub-pixel triangles of lit spheres, whose normals turn inside a pixel):
