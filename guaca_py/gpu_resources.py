@@ -92,14 +92,18 @@ class MeshCache(_FrameCache):
             self.uploads += 1
         return self._buffers[key]
 
-    def adjacency(self, mesh):
-        """uint32 buffer of each triangle's edge neighbours' apexes (raster/adjacency.py), by content, built on first use."""
+    def adjacency(self, mesh, limits=None):
+        """uint32 buffer of each triangle's edge neighbours' apexes (raster/adjacency.py), by content, built on
+        first use, when it fits the device's storage rule `limits` (else a LimitError naming antialiasing.merge)."""
+        from .limits import require_bytes
         from .raster.adjacency import edge_apexes
 
         key = mesh_digest(mesh)
         self._touch(key)
         buf = self._adjacency.get(key)
         if buf is None:
+            hint = "leave antialiasing.merge off for this mesh's scene, or split the mesh (12 bytes a triangle)"
+            require_bytes(limits, mesh.triangle_count * 12, "antialiasing.merge", hint)
             buf = self._adjacency[key] = self.ctx.buffer(edge_apexes(mesh.indices).tobytes())
         return buf
 

@@ -89,7 +89,6 @@ _MAX_GROUPS_X = 65535  # the GL minimum of GL_MAX_COMPUTE_WORK_GROUP_COUNT; grid
 
 
 _TOO_BIG = "draw this mesh with transparency.raster: hardware, or split it (GUACA_MAX_BUFFER_MB sets the rule)"
-_TOO_BIG_TO_MERGE = "leave antialiasing.merge off for this mesh's scene, or split the mesh (12 bytes a triangle)"
 _corners_cache: dict[int, tuple] = {}  # id(mesh) -> (weak mesh, corners)
 
 
@@ -154,7 +153,7 @@ class ComputeRasterizer:
         # GUACA_RASTER_STAGES=1: GPU time per stage in stats (reading it waits for the GPU: profiling only)
         self._stages = Timestamps() if os.environ.get("GUACA_RASTER_STAGES", "") not in ("", "0") else None
         self._program_sets: dict[tuple, tuple] = {}  # program key -> the four kernels (built once)
-        self._adjacency_bytes: dict[int, int] = {}  # antialiasing.merge: the meshes' neighbour buffers of a frame
+        self._adjacency_bytes: dict[int, int] = {}  # antialiasing.merge: the neighbour buffers a frame used
         self._kernels: dict[tuple, object] = {}  # (template, tuning) -> args, order and scan kernels
 
     # ------------------------------------------------------------------ programs
@@ -430,8 +429,7 @@ class ComputeRasterizer:
             vbo.bind_to_storage_buffer(9)
             ibo.bind_to_storage_buffer(10)
             if r.aa_merge:  # each triangle's edge neighbours (raster/adjacency.py), built once per mesh
-                require_bytes(r.caps.limits, d.mesh.triangle_count * 12, "antialiasing.merge", _TOO_BIG_TO_MERGE)
-                adjacency = r.meshes.adjacency(d.mesh)
+                adjacency = r.meshes.adjacency(d.mesh, r.caps.limits)
                 adjacency.bind_to_storage_buffer(7)
                 self._adjacency_bytes[adjacency.glo] = adjacency.size
             for prog in kernels:
