@@ -15,12 +15,10 @@ def _at_least(value: int | None, lo: int, option: str, hint: str) -> None:
 
 def check_method_option(method: str | None) -> None:
     """Refuse an unknown --method under the option's name (before a context is made)."""
-    from .methods import method_ids
+    from .methods import require_method_id
 
-    if method is not None and method not in method_ids():
-        raise ConfigError(
-            f"unknown transparency method '{method}'", key="--method", hint=f"known: {', '.join(method_ids())}"
-        )
+    if method is not None:
+        require_method_id(method, "--method")
 
 
 def parse_set_option(item: str) -> tuple[str, object]:

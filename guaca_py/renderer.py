@@ -16,7 +16,7 @@ from .gpu_timer import TimerQuery
 from .host_state import ContextGuard, native, on_context
 from .limits import check_resolution
 from .materials import MaterialRegistry
-from .methods import method_class, method_ids
+from .methods import method_class, require_method_id
 from .passes import PASS_TYPES
 from .pipeline.config import PipelineConfig, load_pipeline
 from .pipeline.draw_cache import DrawCache
@@ -114,7 +114,6 @@ class Renderer:
         # antialiasing.merge: adjacent triangles' samples join the node of the one covering the pixel
         # centre (the compute rasterizer's setup stage; nothing to merge with one sample)
         self.aa_merge = self.samples > 1 and self.config.antialiasing["merge"] == "adjacent"
-        self.aa_merge_crease_deg = float(self.config.antialiasing["merge_crease_deg"])
         self.materials = MaterialRegistry(material_paths)
         self.meshes = MeshCache(self.ctx)
         self.textures = TextureCache(self.ctx)
@@ -163,11 +162,7 @@ class Renderer:
     @on_context
     def set_method(self, mid: str, overrides: dict | None = None) -> None:
         """Switch the transparency method (settings shared with the config carry over)."""
-        if mid not in method_ids():
-            # a pipeline file's method is checked with its line when it is read: this one is an argument
-            raise ConfigError(
-                f"unknown transparency method '{mid}'", "method", hint=f"known: {', '.join(method_ids())}"
-            )
+        require_method_id(mid, "method")  # a pipeline file's method was checked with its line when read
         cls = method_class(mid)
         reason = cls.unsupported_reason(self.caps)
         if reason:

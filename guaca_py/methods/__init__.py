@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib
 import pkgutil
 
+from ..errors import ConfigError
 from .base import TransparencyMethod
 
 _REGISTRY: dict[str, type[TransparencyMethod]] = {}
@@ -30,10 +31,16 @@ def method_ids() -> list[str]:
     return sorted(_REGISTRY)
 
 
+def require_method_id(mid: str, where: str) -> None:
+    """Raise a ConfigError under `where` (the option or argument that gave it) unless `mid` is a method id."""
+    if mid not in method_ids():
+        raise ConfigError(f"unknown transparency method '{mid}'", where, hint=f"known: {', '.join(method_ids())}")
+
+
 def method_class(mid: str) -> type[TransparencyMethod]:
     """The class implementing method `mid`."""
     _discover()
     return _REGISTRY[mid]
 
 
-__all__ = ["TransparencyMethod", "method_ids", "method_class"]
+__all__ = ["TransparencyMethod", "method_ids", "method_class", "require_method_id"]

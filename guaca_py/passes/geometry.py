@@ -72,7 +72,8 @@ class GeometryPass(Pass):
         asked = self.renderer.config.antialiasing["samples"]
         frame.stats["antialiasing"] = {"samples": self._samples, **({"asked": asked} if asked != self._samples else {})}
         if self.renderer.aa_merge:
-            frame.stats["antialiasing"].update(merge="adjacent", merge_crease_deg=self.renderer.aa_merge_crease_deg)
+            crease = self.renderer.config.antialiasing["merge_crease_deg"]
+            frame.stats["antialiasing"].update(merge="adjacent", merge_crease_deg=crease)
         frame.stats.setdefault("memory", {})["gbuffer"] = frame.pixel_count * (3 * 8 + 4) * self._samples
         method = self.renderer.method
         has_transparency = bool(frame.transparent_draws)

@@ -191,6 +191,7 @@ class ComputeRasterizer:
             raise ConfigError(cm.problem, mat.path, None, "transparency.raster")
         mvars = method.template_vars()
         label = f"material '{mat.name}'"
+        crease_deg = self.renderer.config.antialiasing["merge_crease_deg"]  # antialiasing.merge's
         key = (
             "compute_raster",
             str(mat.path),
@@ -201,7 +202,7 @@ class ComputeRasterizer:
             self.small_fragments,
             self.medium_area,
             self.renderer.aa_merge,
-            self.renderer.aa_merge_crease_deg,
+            crease_deg,
         )
         hit = self._program_sets.get(key)
         if hit is not None:
@@ -231,7 +232,7 @@ class ComputeRasterizer:
                     **mvars,
                     compute_raster=True,
                     aa_merge=self.renderer.aa_merge,  # antialiasing.merge: adjacent (setup stage)
-                    aa_merge_crease_cos=f"{math.cos(math.radians(self.renderer.aa_merge_crease_deg)):.9f}",
+                    aa_merge_crease_cos=f"{math.cos(math.radians(crease_deg)):.9f}",
                     raster_stage=stage,  # the triangle record's layout is chosen per kernel
                     frag_xy="gua_frag_xy",
                     tc_derivatives=cm.tc_derivatives,
