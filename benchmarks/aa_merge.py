@@ -1,14 +1,15 @@
 """What antialiasing.merge: adjacent saves and costs: stored fragments, error and time against unmerged samples.
 
-Usage: python benchmarks/aa_merge.py OUTDIR --scenes DIR [--scene-names dragons ...] [--size 1024]
-                                     [--ref-k 8] [--tile 2048] [--frames 5] [--warmup-s 1.5] [--crease 15 ...]
+Usage: python benchmarks/aa_merge.py OUTDIR --scenes DIR [--scene-names dragons ...] [--crease 15 ...]
+                                     [and benchmarks/accuracy_scenes.py's --size, --ref-k, --tile,
+                                      --frames, --warmup, --warmup-s, --budget-s]
 Per scene, through the compute rasterizer (which merges; `transparency.raster: compute`, as `auto`
 takes on a GPU) in guaca_py.accuracy.linear_pipeline: presort_lf_et at 1 sample, at 4 samples and
-at 4 samples merged (at each --crease limit, antialiasing.merge_crease_deg). Error against the exact frame at --ref-k x the resolution, box filtered (as
-benchmarks/accuracy_scenes.py): RMSE and edge RMSE in 1/255, FLIP where flip-evaluator is installed.
-Time: the median of --frames frames' per-pass times after --warmup-s seconds of untimed frames (GPU
-timer queries on a GPU, with the SM clock; wall time on software rasterizers, which are not
-performance figures). Writes OUTDIR/aa_merge.{json,md} and OUTDIR/<scene>_crops.png (the window with the
+at 4 samples merged (at each --crease limit, antialiasing.merge_crease_deg). Reference, errors and
+timing are benchmarks/accuracy_scenes.py's (`reference`, `errors`, `measure`: the exact frame at
+--ref-k x the resolution, box filtered; RMSE and edge RMSE in 1/255, FLIP where flip-evaluator is
+installed; per-pass medians held at the maximum SM clock on a GPU, wall time on software
+rasterizers, which is no performance figure). Writes OUTDIR/aa_merge.{json,md} and OUTDIR/<scene>_crops.png (the window with the
 most edge pixels in the reference, at 1 and 4 samples and merged, enlarged).
 """
 
@@ -18,7 +19,6 @@ import argparse
 import json
 import shlex
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -26,10 +26,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
 
-from paper_table import progress, time_frames  # noqa: E402
+from accuracy_scenes import add_common_args, errors, measure, reference, scene_paths  # noqa: E402
+from paper_table import progress  # noqa: E402
 
 from guaca_py import Renderer  # noqa: E402
-from guaca_py.accuracy import edge_pixels, flip, linear_pipeline, rmse_255, supersampled  # noqa: E402
+from guaca_py.accuracy import linear_pipeline  # noqa: E402
 from guaca_py.antialiasing import with_settings  # noqa: E402
 from guaca_py.context import create_context  # noqa: E402
 from guaca_py.scene.loader import load_scene  # noqa: E402
@@ -44,32 +45,21 @@ def configs(creases: list[float]) -> list[tuple[str, int, str, float]]:
 def run_scene(ctx, caps, path: Path, args) -> dict:
     """The reference, then each configuration of one scene."""
     scene = load_scene(path)
-    t0 = time.perf_counter()
-    ref_r = Renderer(linear_pipeline(1), ctx=ctx, method="presort_lf", method_overrides={"raster": "hardware"})
-    ref = supersampled(ref_r, scene, args.size, args.size, args.ref_k, args.tile)
-    ref_r.release()
-    edges = edge_pixels(ref)
-    progress(
-        f"{path.stem}: reference {args.ref_k}x in {time.perf_counter() - t0:.1f} s, edge pixels {edges.mean():.1%}"
-    )
+    ref, edges = reference(ctx, path, scene, args)
+    warmup_s = args.warmup_s if caps.gpu_timers else 0.0  # no clock to ramp up on a software rasterizer
     rows, images = [], {}
     for label, samples, merge, crease in configs(args.crease):
         pipeline = with_settings(linear_pipeline(samples, merge=merge), {"merge_crease_deg": crease}, "aa_merge")
         r = Renderer(pipeline, ctx=ctx, method="presort_lf_et", method_overrides={"raster": "compute"})
-        timing = time_frames(r, scene, args.size, args.warmup_s if caps.gpu_timers else 0.0, args.frames)
-        frame = r.render(scene, args.size, args.size)
+        timing, frame = measure(r, scene, args.size, args, warmup_s)
         row = {
             "label": label,
             "samples": r.samples,
             "merge": merge,
             "merge_crease_deg": crease if merge != "off" else None,
-            "ms": timing["total_ms"],
-            "passes_ms": timing["passes_ms"],
-            "clock": timing.get("clock"),
+            **timing,
             "stored": frame.stats["fragments"].get("stored"),
-            "rmse_255": rmse_255(frame.linear, ref.image),
-            "edge_rmse_255": rmse_255(frame.linear, ref.image, edges),
-            "flip": flip(frame.linear, ref.image),
+            **errors(frame.linear, ref, edges),
             "warnings": frame.stats.get("warnings", []),
         }
         r.release()
@@ -79,11 +69,11 @@ def run_scene(ctx, caps, path: Path, args) -> dict:
             f"  {label:32s} {row['ms']:9.3f} ms  stored {row['stored']:>9}  RMSE {row['rmse_255']:.2f}  "
             f"edge {row['edge_rmse_255']:.2f}"
         )
-    crops(args.out / f"{path.stem}_crops.png", ref.image, edges, images, rows)
+    crops(args.out / f"{path.stem}_crops.png", ref.image, ref.k, edges, images, rows)
     return {"scene": path.stem, "size": args.size, "ref_k": args.ref_k, "edge_pixels": int(edges.sum()), "rows": rows}
 
 
-def crops(path: Path, reference, edges, images: dict, rows: list[dict], side: int = 96, zoom: int = 4) -> None:
+def crops(path: Path, ref_image, k: int, edges, images: dict, rows: list[dict], side: int = 96, zoom: int = 4) -> None:
     """A picture to look at: the window of `side` px with the most edge pixels, in the reference, at 1 sample,
     at 4 samples and merged (the first crease limit), each enlarged `zoom` times and labelled with its error."""
     from PIL import Image, ImageDraw
@@ -93,7 +83,7 @@ def crops(path: Path, reference, edges, images: dict, rows: list[dict], side: in
     sums = np.pad(edges.astype(np.int64).cumsum(0).cumsum(1), ((1, 0), (1, 0)))
     windows = sums[side:, side:] - sums[:-side, side:] - sums[side:, :-side] + sums[:-side, :-side]
     y, x = np.unravel_index(int(np.argmax(windows)), windows.shape)
-    shown = [("reference (8x8 supersampled)", reference, None)] + [
+    shown = [(f"reference ({k}x{k} supersampled)", ref_image, None)] + [
         (r["label"], images[r["label"]], r) for r in rows[:3]
     ]
     tile, caption = side * zoom, 30
@@ -114,12 +104,15 @@ def markdown(records: list[dict], command: str, device: str, timer: str) -> str:
     for rec in records:
         one, four = rec["rows"][0], rec["rows"][1]
         out += [f"## {rec['scene']} ({rec['size']}², reference {rec['ref_k']}x, {rec['edge_pixels']} edge pixels)", ""]
-        out += ["| configuration | ms | against 1 sample | stored | against 1 sample | RMSE | edge RMSE | FLIP |"]
-        out += ["|---|---|---|---|---|---|---|---|"]
+        out += [
+            "| configuration | ms | against 1 sample | SM MHz | stored | against 1 sample | RMSE | edge RMSE | FLIP |"
+        ]
+        out += ["|---|---|---|---|---|---|---|---|---|"]
         for r in rec["rows"]:
             fl = f"{r['flip']:.4f}" if isinstance(r["flip"], float) else "—"
+            mhz = (r.get("clock") or {}).get("sm_clock_mhz_median", "—")
             out.append(
-                f"| {r['label']} | {r['ms']:.3f} | {r['ms'] / one['ms']:.2f}x | {r['stored']} | "
+                f"| {r['label']} | {r['ms']:.3f} | {r['ms'] / one['ms']:.2f}x | {mhz} | {r['stored']} | "
                 f"{r['stored'] / max(1, one['stored']):.2f}x | {r['rmse_255']:.2f} | {r['edge_rmse_255']:.2f} | {fl} |"
             )
         out.append("")
@@ -135,19 +128,12 @@ def markdown(records: list[dict], command: str, device: str, timer: str) -> str:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("out", type=Path)
-    ap.add_argument("--scenes", type=Path, required=True)
-    ap.add_argument("--scene-names", nargs="*", default=["dragons"])
-    ap.add_argument("--size", type=int, default=1024)
-    ap.add_argument("--ref-k", type=int, default=8)
-    ap.add_argument("--tile", type=int, default=2048)
-    ap.add_argument("--frames", type=int, default=5)
-    ap.add_argument("--warmup-s", type=float, default=1.5)
+    add_common_args(ap)
     ap.add_argument("--crease", nargs="*", type=float, default=[15.0], help="merge_crease_deg of the merged rows")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     ctx, caps = create_context(None)
-    records = [run_scene(ctx, caps, args.scenes / f"{n}.yaml", args) for n in args.scene_names]
+    records = [run_scene(ctx, caps, path, args) for path in scene_paths(args)]
     command = "python benchmarks/aa_merge.py " + shlex.join(argv if argv is not None else sys.argv[1:])
     timer = "GPU timer queries" if caps.gpu_timers else "wall time"
     (args.out / "aa_merge.json").write_text(

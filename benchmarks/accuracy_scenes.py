@@ -133,16 +133,12 @@ def top_clock(rec: dict) -> float | None:
     return max(seen) if seen else None
 
 
-def run_scene(ctx, caps, path: Path, args, pool) -> dict:
-    """Reference, then every configuration of one scene (until --scene-budget-s); the scene's JSON record."""
+def reference(ctx, path: Path, scene, args):
+    """The scene's exact frame at --ref-k x --size, box filtered, and its edge pixels (printed with its time)."""
     t0 = time.perf_counter()
-    scene = load_scene(path)
-    size = args.size
-    # no clock to ramp up on software rasterizers (their frames are timed on the wall clock)
-    warmup_s = args.warmup_s if caps.gpu_timers else 0.0
     # the hardware rasterizer, as for every sample count: one set of coverage rules throughout
     ref_r = Renderer(linear_pipeline(1), ctx=ctx, method=REFERENCE_METHOD, method_overrides={"raster": "hardware"})
-    ref = supersampled(ref_r, scene, size, size, args.ref_k, args.tile)
+    ref = supersampled(ref_r, scene, args.size, args.size, args.ref_k, args.tile)
     ref_r.release()
     edges = edge_pixels(ref)
     print(
@@ -151,15 +147,54 @@ def run_scene(ctx, caps, path: Path, args, pool) -> dict:
         + (f", OVERFLOW: {ref.overflow} fragments dropped (smaller --tile)" if ref.overflow else ""),
         flush=True,
     )
+    return ref, edges
+
+
+def errors(img, ref, edges, pool=None) -> dict:
+    """RMSE, edge RMSE (1/255) and FLIP (a future where `pool` computes it) of a linear frame against `ref`."""
+    return {
+        "rmse_255": rmse_255(img, ref.image),
+        "edge_rmse_255": rmse_255(img, ref.image, edges),
+        "flip": pool.submit(flip, img, ref.image) if pool is not None else flip(img, ref.image),
+    }
+
+
+def add_common_args(ap: argparse.ArgumentParser) -> None:
+    """Arguments every error benchmark takes: output, scenes, size, reference and timing."""
+    ap.add_argument("out", type=Path)
+    ap.add_argument("--scenes", type=Path, required=True, help="folder of scene YAMLs (e.g. ../shared/scenes)")
+    ap.add_argument("--scene-names", nargs="*", help="only these scenes (file stems)")
+    ap.add_argument("--size", type=int, default=1024)
+    ap.add_argument("--ref-k", type=int, default=8, help="reference supersampling factor (4 or 8)")
+    ap.add_argument("--tile", type=int, default=2048, help="largest reference tile side in px")
+    ap.add_argument("--frames", type=int, default=5)
+    ap.add_argument("--warmup", type=int, default=2, help="untimed frames at least (the first included)")
+    ap.add_argument(
+        "--warmup-s", type=float, default=1.5, help="untimed rendering before timing (GPU timers only: the clock ramps)"
+    )
+    ap.add_argument("--budget-s", type=float, default=3.0, help="a slower first frame: measure one frame")
+
+
+def scene_paths(args) -> list[Path]:
+    """The scene YAMLs of --scenes, only those of --scene-names where given."""
+    scenes = sorted(args.scenes.glob("*.yaml"))
+    return [p for p in scenes if p.stem in args.scene_names] if args.scene_names else scenes
+
+
+def run_scene(ctx, caps, path: Path, args, pool) -> dict:
+    """Reference, then every configuration of one scene (until --scene-budget-s); the scene's JSON record."""
+    t0 = time.perf_counter()
+    scene = load_scene(path)
+    size = args.size
+    # no clock to ramp up on software rasterizers (their frames are timed on the wall clock)
+    warmup_s = args.warmup_s if caps.gpu_timers else 0.0
+    ref, edges = reference(ctx, path, scene, args)
 
     def measure_row(r: Renderer, row: dict) -> None:
         timing, frame = measure(r, scene, size, args, warmup_s)
-        img = frame.linear
         row.update(timing)
         row["samples"] = r.samples
-        row["rmse_255"] = rmse_255(img, ref.image)
-        row["edge_rmse_255"] = rmse_255(img, ref.image, edges)
-        row["flip"] = pool.submit(flip, img, ref.image) if pool is not None else flip(img, ref.image)
+        row.update(errors(frame.linear, ref, edges, pool))
         row["fragments"] = frame.stats.get("fragments", {})
         row["raster"] = frame.stats.get("raster", {}).get("why")
         row["memory"] = frame.stats.get("memory", {})
@@ -361,18 +396,7 @@ def chart(rec: dict, path: Path) -> None:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("out", type=Path)
-    ap.add_argument("--scenes", type=Path, required=True, help="folder of scene YAMLs (e.g. ../shared/scenes)")
-    ap.add_argument("--scene-names", nargs="*", help="only these scenes (file stems)")
-    ap.add_argument("--size", type=int, default=1024)
-    ap.add_argument("--ref-k", type=int, default=8, help="reference supersampling factor (4 or 8)")
-    ap.add_argument("--tile", type=int, default=2048, help="largest reference tile side in px")
-    ap.add_argument("--frames", type=int, default=5)
-    ap.add_argument("--warmup", type=int, default=2, help="untimed frames at least (the first included)")
-    ap.add_argument(
-        "--warmup-s", type=float, default=1.5, help="untimed rendering before timing (GPU timers only: the clock ramps)"
-    )
-    ap.add_argument("--budget-s", type=float, default=3.0, help="a slower first frame: measure one frame")
+    add_common_args(ap)
     ap.add_argument(
         "--scene-budget-s", type=float, default=0.0, help="per scene (reference included): later configurations skipped"
     )
@@ -393,10 +417,7 @@ def main(argv=None) -> int:
         pool = ProcessPoolExecutor(args.flip_workers, mp_context=spawn) if args.flip_workers > 0 else None
         ctx, caps = create_context()
         device = caps.renderer
-        scenes = sorted(args.scenes.glob("*.yaml"))
-        if args.scene_names:
-            scenes = [p for p in scenes if p.stem in args.scene_names]
-        for path in scenes:
+        for path in scene_paths(args):
             rec = run_scene(ctx, caps, path, args, pool)
             rec.update(device=device, command=command)
             d = args.out / rec["scene"]
