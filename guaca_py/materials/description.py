@@ -180,13 +180,13 @@ def check_range(spec: UniformSpec, value, file, line, declared_by: str = "the ma
 
 def _parse_range(raw, typ: str, path: Path, line: int, uname: str) -> tuple[float | None, float | None]:
     """A uniform's `"range": [lo, hi]` (either bound may be null); only numeric uniforms have one."""
+    if typ == "sampler2D":
+        raise ConfigError("a sampler2D uniform has no range", path, line, uname, "leave 'range' out")
     ok = isinstance(raw, list) and len(raw) == 2
     ok = ok and all(b is None or (isinstance(b, (int, float)) and not isinstance(b, bool)) for b in raw)
-    if typ == "sampler2D" or not ok or (None not in raw and raw[0] > raw[1]):
+    if not ok or (None not in raw and raw[0] > raw[1]):
         raise ConfigError(
-            f"'range' must be [low, high] with low <= high (null: no bound), got {raw!r}"
-            if typ != "sampler2D"
-            else "a sampler2D uniform has no range",
+            f"'range' must be [low, high] with low <= high (null: no bound), got {raw!r}",
             path,
             line,
             uname,
