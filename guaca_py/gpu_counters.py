@@ -4,8 +4,7 @@ NVIDIA's OpenGL driver places a buffer object by how the CPU uses it. A storage 
 CPU wrote before and read after every frame (the A-buffer's counters) ended up where every
 shader atomic on it cost ~35 ns: on the H100 a 1024² full-screen layer took 70 ms of geometry
 against 1.3 ms once the same counters were reset and read only through GPU-side copies
-(docs/performance.md has the experiment; `GUACA_DIRECT_CPU_ACCESS=1` reproduces the old access
-pattern). So buffers that shaders touch are written and read by the CPU only through small
+(docs/performance.md has the experiment, docs/decisions.md its record). So buffers that shaders touch are written and read by the CPU only through small
 staging buffers and glCopyBufferSubData.
 
 Counters a frame loop reads a frame late go through `FencedCopies`: a GPU copy into a persistently
@@ -18,7 +17,6 @@ the other (hairball_v1: 8.8 ms a frame where the GPU needs 4.7).
 from __future__ import annotations
 
 import ctypes
-import os
 from collections import deque
 
 import numpy as np
@@ -29,11 +27,6 @@ _MAP_READ, _MAP_PERSISTENT, _MAP_COHERENT, _CLIENT_STORAGE = 0x1, 0x40, 0x80, 0x
 _SYNC_GPU_COMMANDS_COMPLETE, _SYNC_FLUSH_COMMANDS = 0x9117, 0x1
 _ALREADY_SIGNALED, _CONDITION_SATISFIED = 0x911A, 0x911C
 _WAIT_FOREVER = 0xFFFFFFFFFFFFFFFF
-
-
-def direct_cpu_access() -> bool:
-    """True when the old pattern (CPU writes/reads the shader's own buffer) is asked for, to measure it."""
-    return os.environ.get("GUACA_DIRECT_CPU_ACCESS", "") not in ("", "0")
 
 
 class FencedCopies:
@@ -171,9 +164,6 @@ class CounterBlock:
                 raise KeyError(f"unknown counters: {', '.join(values)}")
         else:  # every counter 0: the common case, once a frame per block
             words = self._zeros
-        if direct_cpu_access():
-            self.buffer.write(np.array(words, dtype=np.uint32).tobytes())
-            return
         if words != self._initial_values:
             self._initial.write(np.array(words, dtype=np.uint32).tobytes())
             self._initial_values = words
@@ -182,11 +172,8 @@ class CounterBlock:
     def read(self) -> dict[str, int]:
         """The counters by name (waits for the GPU work that updates them); an older stage() is dropped."""
         self._late.discard()  # a frame read now: what was set aside before it is older than that
-        src = self.buffer
-        if not direct_cpu_access():
-            self.ctx.copy_buffer(self._staging, self.buffer)
-            src = self._staging
-        return dict(zip(self.names, np.frombuffer(src.read(), dtype=np.uint32).tolist()))
+        self.ctx.copy_buffer(self._staging, self.buffer)
+        return dict(zip(self.names, np.frombuffer(self._staging.read(), dtype=np.uint32).tolist()))
 
     def stage(self, tag: object = None) -> None:
         """Copy the counters aside on the GPU, to be read by staged() a frame later without waiting now."""
@@ -240,9 +227,6 @@ class UploadBuffer:
         if not data or data == self._held:
             return
         self._held = data
-        if direct_cpu_access():
-            self.buffer.write(data)
-            return
         self._staging.write(data)
         self.ctx.copy_buffer(self.buffer, self._staging, size=len(data))
 
@@ -268,8 +252,6 @@ class StagedReader:
 
     def read(self, buffer, size: int, offset: int = 0) -> bytes:
         """`size` bytes of `buffer` from `offset` (waits for the GPU work that writes them)."""
-        if direct_cpu_access():
-            return buffer.read(size=size, offset=offset)
         if self._staging is None or self._staging.size < size:
             self.release()
             self._staging = self.ctx.buffer(reserve=max(size, 16))

@@ -22,14 +22,14 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
-import os
 from dataclasses import dataclass
 
+from . import env
 from .errors import LimitError
 
 INDEX_LIMIT_BYTES = 2**31 - 1
 MEMORY_SHARE = 0.5  # of the memory reported free: the rest stays with the driver and the host application
-ENV_CAP = "GUACA_MAX_BUFFER_MB"
+ENV_CAP = env.MAX_BUFFER_MB
 _GPU_MEMORY_INFO_CURRENT_AVAILABLE_VIDMEM_NVX = 0x9049  # KiB
 _MIB = 1024 * 1024
 # G-buffer (3 half-float RGBA + depth), linear colour and two post targets (float RGBA), A-buffer
@@ -90,17 +90,15 @@ def _host_available_bytes() -> int | None:
 
 def env_cap_bytes() -> int | None:
     """The cap set by GUACA_MAX_BUFFER_MB, or None; a bad value is a LimitError naming the variable."""
-    text = os.environ.get(ENV_CAP)
-    if text is None or not text.strip():
+    text = env.max_buffer_mb()
+    if text is None:
         return None
     try:
         mb = float(text)
     except ValueError:
         mb = -1.0
     if not mb > 0 or mb != mb or mb == float("inf"):
-        raise LimitError(
-            f"{ENV_CAP}={text!r} is not a positive number of MB", key=ENV_CAP, hint="e.g. GUACA_MAX_BUFFER_MB=64"
-        )
+        raise LimitError(f"{ENV_CAP}={text!r} is not a positive number of MB", key=ENV_CAP, hint=f"e.g. {ENV_CAP}=64")
     return max(4096, int(mb * _MIB))
 
 

@@ -314,17 +314,10 @@ def test_lit_default_pipeline_with_samples(renderer_factory):
 
 
 @pytest.mark.skipif(shutil.which("glslangValidator") is None, reason="glslangValidator (glslang-tools) not installed")
-@pytest.mark.parametrize(
-    "method, atomic_walk",
-    [(m, "0") for m in ("presort_lf_et", "presort_lf_merge2_et", "presort_cs_et", "post_merge16")]
-    + [("presort_lf_et", "1")],
-)
-def test_gpu_variants_at_8_samples_pass_the_reference_compiler(
-    aa_renderers, tmp_path, monkeypatch, method, atomic_walk
-):
+@pytest.mark.parametrize("method", ["presort_lf_et", "presort_lf_merge2_et", "presort_cs_et", "post_merge16"])
+def test_gpu_variants_at_8_samples_pass_the_reference_compiler(aa_renderers, tmp_path, monkeypatch, method):
     """The NVIDIA variants (64-bit insertion, ballots, interlock) at 8 samples, which this device cannot build;
-    the 64-bit list walk with plain loads (the default) and with an atomic per node (GUACA_ATOMIC_WALK=1)."""
-    monkeypatch.setenv("GUACA_ATOMIC_WALK", atomic_walk)
+    the 64-bit list walk passes nearer records with plain loads."""
     from guaca_py.passes import composite
     from guaca_py.passes.base import OUTPUT_IMAGE_UNIT
     from guaca_py.pipeline.drawlist import build_draw_list
@@ -356,8 +349,8 @@ def test_gpu_variants_at_8_samples_pass_the_reference_compiler(
     sources["comp"] = r.shaders.render("composite/shade_composite.comp.j2", **cvars)
     assert "gl_SampleMaskIn" in sources["frag"] and "sampler2DMS" in sources["comp"]
     assert "uint64_t" in sources["frag"] or m.link_bytes == 4
-    if method.startswith("presort_lf"):  # the sorted 64-bit walk: loads past nearer records unless asked not to
-        assert ("uint64_t seen = gua_links[slot];" in sources["frag"]) == (atomic_walk == "0")
+    if method.startswith("presort_lf"):  # the sorted 64-bit walk: loads past nearer records
+        assert "uint64_t seen = gua_links[slot];" in sources["frag"]
     for stage, text in sources.items():
         path = tmp_path / f"s.{stage}"
         path.write_text(text)

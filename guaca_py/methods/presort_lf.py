@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import os
 
 from ..gpu_counters import CounterBlock
 from ..limits import pool_node_limit
@@ -239,12 +238,6 @@ class PreSortLF(TransparencyMethod):
             "subgroup_counts": ballot,
             "subgroup_alloc": ballot and self.path == "64bit",
             "aa_samples": self.aa_samples,
-            # the 64-bit walk spends an atomicMax per node it passes (GUACA_ATOMIC_WALK=1, to measure
-            # against the default: a plain load per node passed, an atomic only where it may insert)
-            "atomic_walk": os.environ.get("GUACA_ATOMIC_WALK", "") not in ("", "0"),
-            # profiling only (GUACA_SKIP_INSERTION=1): fragments are rasterized and shaded but never
-            # inserted, so a frame's time is what the rasterizer costs without the A-buffer
-            "skip_insertion": os.environ.get("GUACA_SKIP_INSERTION", "") not in ("", "0"),
         }
 
     def extensions(self) -> str:

@@ -24,13 +24,13 @@ from __future__ import annotations
 
 import functools
 import math
-import os
 import weakref
 from collections.abc import Mapping
 from types import MappingProxyType
 
 import numpy as np
 
+from .. import env
 from ..errors import ConfigError
 from ..gpu_counters import CounterBlock
 from ..gpu_timer import Timestamps
@@ -151,7 +151,7 @@ class ComputeRasterizer:
         self.medium_area = MEDIUM_AREA
         self._materials: dict[int, tuple] = {}  # id(material) -> (material, ComputeMaterial)
         # GUACA_RASTER_STAGES=1: GPU time per stage in stats (reading it waits for the GPU: profiling only)
-        self._stages = Timestamps() if os.environ.get("GUACA_RASTER_STAGES", "") not in ("", "0") else None
+        self._stages = Timestamps() if env.raster_stages() else None
         self._program_sets: dict[tuple, tuple] = {}  # program key -> the four kernels (built once)
         self._adjacency_bytes: dict[int, int] = {}  # antialiasing.merge: the neighbour buffers a frame used
         self._kernels: dict[tuple, object] = {}  # (template, tuning) -> args, order and scan kernels
