@@ -161,7 +161,7 @@ def _cmd_methods(args) -> int:
             (
                 mid,
                 "exact" if cls.exact else "approximate",
-                cls.geometry_passes,
+                cls.geometry_passes_rule if cls.geometry_passes is None else str(cls.geometry_passes),
                 "yes" if cls.supports_antialiasing else "no",
                 "yes" if reason is None else f"no: {reason}",
                 cls.summary,

@@ -389,9 +389,7 @@ class Renderer:
         self._frame_index += 1
         frame.stats.setdefault("memory", {}).update(self.method.memory() if frame.transparent_draws else {})
         declared = self.method.geometry_passes
-        frame.stats.setdefault(
-            "geometry_passes", int(declared) if frame.transparent_draws and declared.isdigit() else 1
-        )
+        frame.stats.setdefault("geometry_passes", declared if frame.transparent_draws and declared is not None else 1)
         if kind == "gpu" and any(p["ms"] >= 4294.9 for p in frame.stats["passes"].values()):
             frame.stats.setdefault("warnings", []).append(
                 "a pass took longer than the 32-bit GPU timer result can hold (4.29 s); its time is clipped"

@@ -117,6 +117,8 @@ def test_python_dash_m_is_the_same_command():
     assert "presort_lf_et" in r.stdout and "exact" in r.stdout
     rows = {line.split()[0]: line.split() for line in r.stdout.splitlines()[1:]}
     assert rows["presort_lf_et"][3] == "yes" and rows["dfb"][3] == "no"  # the 'samples > 1' column
+    # 'geometry passes': a count, or the rule where the scene decides
+    assert rows["presort_lf_et"][2] == "1" and rows["stochastic"][2] == "2" and rows["depth_peeling"][2] == "layers"
 
 
 def test_missing_gl_gives_one_clear_error(monkeypatch):

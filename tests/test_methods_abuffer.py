@@ -247,4 +247,4 @@ def test_methods_are_registered():
     from guaca_py.methods import method_class, method_ids
 
     assert set(METHODS) <= set(method_ids())
-    assert all(method_class(m).exact and method_class(m).geometry_passes == "1" for m in METHODS)
+    assert all(method_class(m).exact and method_class(m).geometry_passes == 1 for m in METHODS)

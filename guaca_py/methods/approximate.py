@@ -153,7 +153,7 @@ class ForwardBlendMethod(TransparencyMethod):
         counts = self.counts(frame)
         blended = counts.pop("blended", 0)
         frame.stats["fragments"] = {"stored": blended, "blended": blended, "dropped": 0, "merged": 0, **counts}
-        frame.stats["geometry_passes"] = int(self.geometry_passes)
+        frame.stats["geometry_passes"] = self.geometry_passes
         return False
 
     # ------------------------------------------------------------------ shaders

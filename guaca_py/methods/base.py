@@ -35,7 +35,10 @@ class TransparencyMethod:
 
     id: ClassVar[str] = ""
     exact: ClassVar[bool] = True
-    geometry_passes: ClassVar[str] = "1"
+    # geometry passes a frame with transparent draws takes, or None where the scene decides (peeling);
+    # geometry_passes_rule then says how, for `guaca methods`
+    geometry_passes: ClassVar[int | None] = 1
+    geometry_passes_rule: ClassVar[str] = ""
     summary: ClassVar[str] = ""
     SETTINGS: ClassVar[dict[str, Setting]] = {}
     geometry_in_composite: ClassVar[bool] = False

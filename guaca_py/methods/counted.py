@@ -177,7 +177,7 @@ class DynamicFragmentBuffer(_CountedStorage):
 
     id = "dfb"
     exact = True
-    geometry_passes = "2"
+    geometry_passes = 2
     summary = "dynamic fragment buffer: count, prefix sum, exact per-pixel arrays, sort at resolve"
     layout = "dfb"
 
@@ -319,7 +319,7 @@ class PagedLinkedLists(_CountedStorage):
 
     id = "paged_ll"
     exact = True
-    geometry_passes = "1"
+    geometry_passes = 1
     summary = "paged per-pixel linked lists (P fragments per page), lock-free, sort at resolve"
     layout = "paged"
     first_phase = "insert"

@@ -29,7 +29,7 @@ class KBuffer(TransparencyMethod):
     id = "kbuffer"
     exact = False
     antialiasing_refusal = "its k fixed slots per pixel merge fragments whatever samples they cover"
-    geometry_passes = "1"
+    geometry_passes = 1
     summary = "k nearest fragments per pixel in fixed sorted slots; overflow merged or dropped"
     SETTINGS = {
         "k": Setting((int,), 8, "fragment slots per pixel (1..64)", check=_k),

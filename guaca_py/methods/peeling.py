@@ -393,7 +393,8 @@ class DepthPeeling(NearestPayloadPeel):
     """Depth peeling (Everitt 2001): one layer per geometry pass, front to back, until nothing is left."""
 
     id = "depth_peeling"
-    geometry_passes = "layers"
+    geometry_passes = None
+    geometry_passes_rule = "layers"
     summary = "front-to-back depth peeling, one layer per geometry pass (exact (depth, tie) order)"
     step_method = "nearest"
 
@@ -430,7 +431,8 @@ class DualDepthPeeling(DepthPeeling):
     """Dual depth peeling (Bavoil & Myers 2008): nearest and farthest layer per pass, front under, back over."""
 
     id = "dual_depth_peeling"
-    geometry_passes = "layers/2"
+    geometry_passes = None
+    geometry_passes_rule = "layers/2"
     summary = "dual depth peeling: nearest and farthest remaining layer per geometry pass"
     step_method = "dual"
     has_back = True

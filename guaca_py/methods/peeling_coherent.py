@@ -97,7 +97,8 @@ class HybridLayerPeeling(NearestPayloadPeel):
     """Hybrid layer peeling: peel the unsorted draws, composite the sorted ones between peeled layers."""
 
     id = "hybrid_layer_peeling"
-    geometry_passes = "2(unsorted+1)"
+    geometry_passes = None
+    geometry_passes_rule = "2(unsorted+1)"
     summary = "hybrid layer peeling: depth-peel unsorted draws, composite sorted draws between layers"
     step_method = "nearest"
     has_range = True
@@ -160,7 +161,8 @@ class CoherentLayerPeeling(PeelingMethod):
     """Coherent layer peeling: composite each pixel's correctly ordered run found by stencil counting."""
 
     id = "coherent_layer_peeling"
-    geometry_passes = "5/iteration"
+    geometry_passes = None
+    geometry_passes_rule = "5/iteration"
     summary = "coherent layer peeling: stencil-counted in-order runs composited per pass (8-bit stencil)"
     step_method = "coherent"
     has_range = True

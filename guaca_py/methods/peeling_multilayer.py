@@ -38,7 +38,8 @@ class MultiLayerDepthPeeling(PeelingMethod):
     """M layers per geometry pass from an atomic per-pixel fragment sort; repeats until nothing is left."""
 
     id = "multilayer_depth_peeling"
-    geometry_passes = "layers/M"
+    geometry_passes = None
+    geometry_passes_rule = "layers/M"
     summary = "multi-layer depth peeling via fragment sort: M nearest layers per pass (atomic slot chain)"
     step_method = "multilayer"
     needs_ordering = False

@@ -27,7 +27,7 @@ class PreSortLF(TransparencyMethod):
 
     id = "presort_lf"
     exact = True
-    geometry_passes = "1"
+    geometry_passes = 1
     early_termination = False
     summary = "sorted lock-free insertion into per-pixel lists (no early termination)"
     compute_raster = True  # insertion is gua_submit_at(pix, depth, tie): callable from compute kernels

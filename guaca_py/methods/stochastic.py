@@ -27,7 +27,7 @@ class StochasticTransparency(ForwardBlendMethod):
 
     id = "stochastic"
     blend = "stochastic"
-    geometry_passes = "2"
+    geometry_passes = 2
     summary = "stochastic transparency: random coverage samples + alpha-corrected accumulation (Enderton 2010)"
     SETTINGS = {
         "samples": Setting((int,), 8, "coverage samples per pixel (S, 1..32)", check=_samples),
