@@ -17,7 +17,6 @@ from .host_state import ContextGuard, native, on_context
 from .limits import check_resolution
 from .materials import MaterialRegistry
 from .methods import method_class, require_method_id
-from .passes import PASS_TYPES
 from .pipeline.config import PipelineConfig, load_pipeline
 from .pipeline.draw_cache import DrawCache
 from .pipeline.drawlist import build_draw_list
@@ -25,6 +24,7 @@ from .pipeline.frame import FrameResult, FrameState, mat_bytes
 from .pipeline.settings import resolve_settings
 from .present import Presenter
 from .raster import RasterRouter
+from .registry import PASSES
 from .scene.graph import Scene
 from .shaders import ShaderLibrary, SourceMap, set_uniform, set_uniforms
 
@@ -126,7 +126,7 @@ class Renderer:
         self._previous_timers: dict | None = None
         self.raster = RasterRouter(self)  # hardware or compute rasterization of transparent draws
         self.set_method(method or self.config.transparency["method"], method_overrides)
-        self.passes = [PASS_TYPES[p.name](self, p.settings) for p in self.config.passes]
+        self.passes = [PASSES.get(p.name)(self, p.settings) for p in self.config.passes]
         available = set(_FIRST_RESOURCES)
         for p, pc in zip(self.passes, self.config.passes):
             missing = [r for r in p.reads if r not in available]

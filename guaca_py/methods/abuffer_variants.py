@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from ..pipeline.settings import Setting, positive
 from ..raster.choice import compute_kernels_draw
+from ..registry import register
 from .base import LOCK_SETTING, resolve_lock
 from .presort_lf import COUNTERS, NODE_PAYLOAD_BYTES, PreSortLF
 
@@ -57,6 +58,7 @@ class ABufferVariant(PreSortLF):
         return m
 
 
+@register("method")
 class PreSortLFMerge2ET(ABufferVariant):
     """PreSortLFMerge2*: two sorted lock-free lists per pixel, merged front to back at composite."""
 
@@ -78,6 +80,7 @@ class PreSortLFMerge2ET(ABufferVariant):
         return {"abuffer_heads": 2 * self._pixels * self.link_bytes}
 
 
+@register("method")
 class PreSortCS(ABufferVariant):
     """PreSortCS: sorted insertion inside a per-pixel critical section (interlock or spin lock)."""
 
@@ -147,6 +150,7 @@ class PreSortCS(ABufferVariant):
         return {"abuffer_locks": self._pixels * 4} if self.lock == "spin" else {}
 
 
+@register("method")
 class PreSortCSET(PreSortCS):
     """PreSortCS*: the critical-section insertion with early termination."""
 
@@ -189,6 +193,7 @@ class _PostBase(ABufferVariant):
         )
 
 
+@register("method")
 class PostSort(_PostBase):
     """PostSort: unsorted per-pixel lists, sorted in a fixed local array (the k nearest kept)."""
 
@@ -220,6 +225,7 @@ class PostSort(_PostBase):
         )
 
 
+@register("method")
 class PostMerge16(_PostBase):
     """PostMerge16: unsorted per-pixel lists, exact order for any depth by rounds of 16 at composite."""
 

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..gpu_timer import SamplesQuery
 from ..pipeline.settings import Setting
+from ..registry import register
 from ..shaders import set_uniform
 from .base import TransparencyMethod
 
@@ -201,6 +202,7 @@ class ForwardBlendMethod(TransparencyMethod):
         self._counted, self._previous = {}, None
 
 
+@register("method")
 class UnsortedBlend(ForwardBlendMethod):
     """Hardware alpha blending in submission order: the floor (exact for back-to-front, non-crossing layers)."""
 
@@ -208,6 +210,7 @@ class UnsortedBlend(ForwardBlendMethod):
     summary = "back-to-front 'over' blending in submission order, no sorting (approximate floor)"
 
 
+@register("method")
 class ObjectSortedBlend(ForwardBlendMethod):
     """Blending of draws sorted back to front by bounding-box centre distance (exact for separable layers)."""
 
@@ -226,6 +229,7 @@ def _weights(v) -> str | None:
     return None if v in ("eq7", "eq8", "eq9", "eq10") else f"must be eq7, eq8, eq9 or eq10, got {v!r}"
 
 
+@register("method")
 class WeightedBlended(ForwardBlendMethod):
     """Weighted blended OIT (McGuire & Bavoil, JCGT 2013): weighted average color, exact coverage."""
 

@@ -16,6 +16,7 @@ import numpy as np
 from ..gpu_counters import CounterBlock, StagedReader
 from ..pipeline.settings import Setting, non_negative, positive
 from ..prefix_sum import GpuFill, PrefixSum, dispatch_grid
+from ..registry import register
 from ..shaders import set_uniform
 from .base import TransparencyMethod
 from .presort_lf import _budget
@@ -172,6 +173,7 @@ class _CountedStorage(TransparencyMethod):
         self._pixels = 0
 
 
+@register("method")
 class DynamicFragmentBuffer(_CountedStorage):
     """DFB: count pass, GPU prefix sum over all pixels, exact allocation, store pass, sort at resolve."""
 
@@ -266,6 +268,7 @@ class DynamicFragmentBuffer(_CountedStorage):
         }
 
 
+@register("method")
 class SBuffer(DynamicFragmentBuffer):
     """S-buffer: as dfb, but pixels reserve their ranges from S counters; only the S totals are scanned."""
 
@@ -314,6 +317,7 @@ class SBuffer(DynamicFragmentBuffer):
         return out
 
 
+@register("method")
 class PagedLinkedLists(_CountedStorage):
     """paged_ll: one geometry pass into per-pixel linked pages of P fragments; the page pool grows on overflow."""
 

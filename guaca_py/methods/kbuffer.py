@@ -11,6 +11,7 @@ from __future__ import annotations
 from ..gpu_counters import CounterBlock
 from ..limits import require_bytes
 from ..pipeline.settings import Setting
+from ..registry import register
 from .approximate import fill_uint_buffer
 from .base import LOCK_SETTING, TransparencyMethod, resolve_lock
 
@@ -23,6 +24,7 @@ def _k(v) -> str | None:
     return None if 1 <= v <= 64 else f"must be between 1 and 64, got {v}"
 
 
+@register("method")
 class KBuffer(TransparencyMethod):
     """Fixed k slots per pixel, kept sorted at insertion under a per-pixel spin lock."""
 

@@ -21,6 +21,7 @@ import math
 from ..errors import UnsupportedMethodError
 from ..gpu_counters import CounterBlock
 from ..pipeline.settings import Setting
+from ..registry import register
 from ..shaders import set_uniform
 from .base import TransparencyMethod
 
@@ -389,6 +390,7 @@ class NearestPayloadPeel(PeelingMethod):
         return [EMPTY_NEAR, EMPTY_NEAR_TIE]
 
 
+@register("method")
 class DepthPeeling(NearestPayloadPeel):
     """Depth peeling (Everitt 2001): one layer per geometry pass, front to back, until nothing is left."""
 
@@ -427,6 +429,7 @@ class DepthPeeling(NearestPayloadPeel):
         return c["in_range"] - c["peeled"]
 
 
+@register("method")
 class DualDepthPeeling(DepthPeeling):
     """Dual depth peeling (Bavoil & Myers 2008): nearest and farthest layer per pass, front under, back over."""
 

@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..pipeline.settings import Setting
+from ..registry import register
 from .peeling import EMPTY_NEAR, EMPTY_NEAR_TIE, ZERO, NearestPayloadPeel, PeelingMethod
 
 # Emulated GL state of the counting passes (peeling/stencil8.glsl.j2 and coherent_stencil.glsl.j2).
@@ -93,6 +94,7 @@ def sorted_chain(intervals: list[tuple[float, float] | None]) -> list[int]:
     return out[::-1]
 
 
+@register("method")
 class HybridLayerPeeling(NearestPayloadPeel):
     """Hybrid layer peeling: peel the unsorted draws, composite the sorted ones between peeled layers."""
 
@@ -157,6 +159,7 @@ class HybridLayerPeeling(NearestPayloadPeel):
             peel = peel and left > 0  # no unsorted fragment left: one more compositing pass finishes
 
 
+@register("method")
 class CoherentLayerPeeling(PeelingMethod):
     """Coherent layer peeling: composite each pixel's correctly ordered run found by stencil counting."""
 

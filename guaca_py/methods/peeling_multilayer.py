@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from ..limits import require_bytes
 from ..pipeline.settings import Setting, positive
+from ..registry import register
 from .peeling import PeelingMethod
 
 NODE_BYTES = 32  # 8 payload words
@@ -34,6 +35,7 @@ def _layers(v) -> str | None:
     return None if 1 <= v <= 32 else f"must be in 1..32, got {v}"
 
 
+@register("method")
 class MultiLayerDepthPeeling(PeelingMethod):
     """M layers per geometry pass from an atomic per-pixel fragment sort; repeats until nothing is left."""
 

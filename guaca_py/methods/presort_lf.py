@@ -7,6 +7,7 @@ import math
 from ..gpu_counters import CounterBlock
 from ..limits import pool_node_limit
 from ..pipeline.settings import Setting, non_negative, positive
+from ..registry import register
 from ..shaders import set_uniform, set_uniforms
 from .base import TransparencyMethod
 
@@ -22,6 +23,7 @@ def _budget(v) -> str | None:
     return f"must be 'auto' or a positive number of MB, got {v!r}"
 
 
+@register("method")
 class PreSortLF(TransparencyMethod):
     """Per-pixel lists kept sorted at insertion by lock-free CAS (32-bit) or atomicMax (64-bit)."""
 
@@ -279,6 +281,7 @@ class PreSortLF(TransparencyMethod):
         self._links = self._nodes = self._counters = self._cull = None
 
 
+@register("method")
 class PreSortLFET(PreSortLF):
     """PreSortLF* — the default: insertion stops once the pixel is saturated in front of the fragment."""
 

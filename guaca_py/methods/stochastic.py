@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from ..limits import require_bytes
 from ..pipeline.settings import Setting
+from ..registry import register
 from .approximate import ForwardBlendMethod, fill_uint_buffer
 
 
@@ -22,6 +23,7 @@ def _samples(v) -> str | None:
     return None if 1 <= v <= 32 else f"must be between 1 and 32, got {v}"
 
 
+@register("method")
 class StochasticTransparency(ForwardBlendMethod):
     """S random coverage samples per pixel, a stochastic depth pass, then an accumulation pass."""
 

@@ -1,24 +1,7 @@
-"""Render passes by config name."""
+"""Render passes. Each pass class registers itself by its config name with `@register("pass")`
+(guaca_py/registry.py); importing this package imports every module that defines one."""
 
+from . import composite, debug_views, fxaa, geometry, light_culling, tone_mapping  # noqa: F401  (they register)
 from .base import Pass
-from .composite import CompositePass
-from .debug_views import DebugDepthComplexityPass, DebugLightCountPass
-from .fxaa import FxaaPass
-from .geometry import GeometryPass
-from .light_culling import LightCullingPass
-from .tone_mapping import ToneMappingPass
 
-PASS_TYPES: dict[str, type[Pass]] = {
-    p.name: p
-    for p in (
-        GeometryPass,
-        LightCullingPass,
-        CompositePass,
-        ToneMappingPass,
-        FxaaPass,
-        DebugLightCountPass,
-        DebugDepthComplexityPass,
-    )
-}
-
-__all__ = ["PASS_TYPES", "Pass"]
+__all__ = ["Pass"]

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..registry import register
 from ..shaders import set_uniform
 from .base import FullscreenPass
 
 
+@register("pass")
 class CompositePass(FullscreenPass):
     """Full-screen pass producing linear HDR color ('hdr').
 

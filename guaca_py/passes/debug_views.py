@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..pipeline.settings import Setting, positive
+from ..registry import register
 from .base import FullscreenPass
 
 # Evenly spaced anchors of the heat scale, 0 (black) to max (red); the GLSL interpolates them linearly.
@@ -73,6 +74,7 @@ class _HeatView(FullscreenPass):
         frame.stats.setdefault("debug_views", {})[self.name] = info
 
 
+@register("pass")
 class DebugLightCountPass(_HeatView):
     """Heat map of the lights assigned to each tile (with culling off: every light, everywhere)."""
 
@@ -116,6 +118,7 @@ class DebugLightCountPass(_HeatView):
         self._finish(frame, tex, info)
 
 
+@register("pass")
 class DebugDepthComplexityPass(_HeatView):
     """Heat map of the transparent fragments stored per pixel (A-buffer list lengths)."""
 

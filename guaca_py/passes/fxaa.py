@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 from ..pipeline.settings import NUMBER, Setting, unit_interval
+from ..registry import register
 from ..shaders import set_uniform
 from .base import FullscreenPass
 
 
+@register("pass")
 class FxaaPass(FullscreenPass):
     """Edge-directed anti-aliasing of 'ldr'."""
 

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+from ..registry import register
 from .base import Pass
 
 
+@register("pass")
 class GeometryPass(Pass):
     """Rasterizes the draw list; opaque draws first so hidden transparent fragments are culled early."""
 

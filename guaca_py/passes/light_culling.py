@@ -12,6 +12,7 @@ from ..errors import DeviceError
 from ..gpu_counters import UploadBuffer
 from ..pipeline.draw_cache import freeze
 from ..pipeline.settings import Setting, positive
+from ..registry import register
 from ..shaders import set_uniform, set_uniforms
 from .base import (
     GL_SHADER_IMAGE_ACCESS_BARRIER_BIT,
@@ -46,6 +47,7 @@ _GRID_BARRIERS = GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_TEXTURE_FETCH_BARRIER_B
 CACHE_TILE_BITS_ABOVE = 64  # layers (2048 lights): 'auto' caches a tile's bits per pixel beyond this
 
 
+@register("pass")
 class LightCullingPass(Pass):
     """Assigns the visible lights to screen tiles (bit i of a tile set where light i may touch it).
 

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 from ..pipeline.settings import NUMBER, Setting, positive
+from ..registry import register
 from ..shaders import set_uniform
 from .base import FullscreenPass
 
 
+@register("pass")
 class ToneMappingPass(FullscreenPass):
     """Maps 'hdr' to 'ldr', pixel by pixel.
 

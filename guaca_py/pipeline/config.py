@@ -5,7 +5,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .. import antialiasing
 from ..errors import ConfigError
+from ..registry import METHODS, PASSES
 from ..resources import builtin_pipeline
 from ..yaml_source import Located, load_yaml_file, load_yaml_text
 from .settings import Setting, positive, resolve_settings
@@ -50,10 +52,6 @@ def _size(v) -> str | None:
 
 def parse_pipeline(doc: Located) -> PipelineConfig:
     """Validate a parsed pipeline document; errors cite file, line and key."""
-    from .. import antialiasing
-    from ..methods import method_class, method_ids  # late: methods import pipeline settings
-    from ..passes import PASS_TYPES
-
     data = doc.data
     if not isinstance(data, dict):
         raise doc.error((), "a pipeline config is a mapping with 'passes'")
@@ -68,11 +66,9 @@ def parse_pipeline(doc: Located) -> PipelineConfig:
     if not isinstance(data.get("transparency", {}), dict):
         raise doc.error(("transparency",), "must be a mapping like {method: presort_lf_et}")
     mid = tr.pop("method", "presort_lf_et")
-    if mid not in method_ids():
-        raise doc.error(
-            ("transparency", "method"), f"unknown transparency method '{mid}'", f"known: {', '.join(method_ids())}"
-        )
-    schema = method_class(mid).settings_schema()
+    if mid not in METHODS:
+        raise doc.error(("transparency", "method"), *METHODS.unknown(mid))
+    schema = METHODS.get(mid).settings_schema()
     settings = resolve_settings(schema, tr, lambda k, r, h: doc.error(("transparency", k), r, h))
     aa = antialiasing.parse(
         data.get("antialiasing"), lambda k, r, h: doc.error(("antialiasing",) + ((k,) if k else ()), r, h)
@@ -93,12 +89,12 @@ def parse_pipeline(doc: Located) -> PipelineConfig:
             given = given or {}
         else:
             raise doc.error(("passes", i), "each pass is a name or a one-key mapping {name: {settings}}")
-        if name not in PASS_TYPES:
-            raise doc.error(("passes", i), f"unknown pass '{name}'", f"known passes: {', '.join(PASS_TYPES)}")
+        if name not in PASSES:
+            raise doc.error(("passes", i), *PASSES.unknown(name))
         if not isinstance(given, dict):
             raise doc.error(("passes", i, name), "pass settings must be a mapping")
         st = resolve_settings(
-            PASS_TYPES[name].SETTINGS, given, lambda k, r, h, i=i, name=name: doc.error(("passes", i, name, k), r, h)
+            PASSES.get(name).SETTINGS, given, lambda k, r, h, i=i, name=name: doc.error(("passes", i, name, k), r, h)
         )
         passes.append(PassConfig(name, st, doc.line(("passes", i))))
     names = [p.name for p in passes]

@@ -16,6 +16,7 @@ from ..errors import GuacaError
 from ..methods import method_class, method_ids
 from ..pipeline.config import PassConfig, load_pipeline
 from ..pipeline.settings import resolve_settings
+from ..registry import PASSES
 from ..renderer import Renderer
 from ..scene.graph import Scene
 from .camera import CameraController
@@ -41,13 +42,11 @@ OVERFLOW_BYTES_PER_PIXEL = 4  # the "overflow" key's A-buffer budget: about one 
 
 def view_pipeline(base, view: str):
     """`base` PipelineConfig with the debug pass of `view` appended."""
-    from ..passes import PASS_TYPES
-
     config = load_pipeline(base)
     extra = VIEWS[view]
     if extra is None:
         return config
-    settings = resolve_settings(PASS_TYPES[extra].SETTINGS, {}, lambda k, r, h: GuacaError(r))
+    settings = resolve_settings(PASSES.get(extra).SETTINGS, {}, lambda k, r, h: GuacaError(r))
     return replace(config, passes=[*config.passes, PassConfig(extra, settings)])
 
 
