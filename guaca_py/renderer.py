@@ -20,13 +20,13 @@ from .methods import method_class, require_method_id
 from .pipeline.config import PipelineConfig, load_pipeline
 from .pipeline.draw_cache import DrawCache
 from .pipeline.drawlist import build_draw_list
-from .pipeline.frame import FrameResult, FrameState, mat_bytes
+from .pipeline.frame import FrameResult, FrameState
 from .pipeline.settings import resolve_settings
 from .present import Presenter
 from .raster import RasterRouter
 from .registry import PASSES
 from .scene.graph import Scene
-from .shaders import ShaderLibrary, SourceMap, set_uniform, set_uniforms
+from .shaders import ShaderLibrary, SourceMap, mat_bytes, set_uniform, set_uniforms
 
 _FIRST_RESOURCES = {"draw_list", "lights"}
 _TEXTURE_UNIT_BASE = 8  # units below are used by the passes' own inputs

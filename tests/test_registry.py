@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from test_imports import import_graph
 
 from guaca_py.errors import ConfigError
 from guaca_py.registry import METHODS, PASSES, Registry, register
@@ -64,7 +65,11 @@ def test_unknown_names_list_the_known_ones():
 
 
 def test_config_validates_through_the_registry_alone():
-    # importing no more than the config module finds every pass and method
+    # pipeline/config.py reads the registry, never the passes or methods packages
+    assert not {
+        m for m in import_graph()["guaca_py.pipeline.config"] if m.startswith(("guaca_py.passes", "guaca_py.methods"))
+    }
+    # and importing no more than the config module finds every pass and method
     code = (
         "from guaca_py.pipeline.config import pipeline_from_text\n"
         "text = 'transparency: {method: dfb}\\npasses: [geometry, light_culling, composite, fxaa]'\n"

@@ -13,7 +13,7 @@ from ..gpu_counters import UploadBuffer
 from ..pipeline.draw_cache import freeze
 from ..pipeline.settings import Setting, positive
 from ..registry import register
-from ..shaders import set_uniform, set_uniforms
+from ..shaders import mat_bytes, set_uniform, set_uniforms
 from .base import (
     GL_SHADER_IMAGE_ACCESS_BARRIER_BIT,
     GL_TEXTURE_FETCH_BARRIER_BIT,
@@ -175,7 +175,6 @@ class LightCullingPass(Pass):
 
     def _build_grid(self, frame, count: int, n_raster: int) -> None:
         from ..gl_state import GL_CONSERVATIVE_RASTERIZATION_NV
-        from ..pipeline.frame import mat_bytes
 
         mgl = self.renderer.moderngl
         tw, th = grid_shape(frame.width, frame.height, self.settings["tile_size"])

@@ -9,7 +9,8 @@ import numpy as np
 from ..errors import ConfigError
 from ..materials import MaterialDescription, MaterialRegistry
 from ..scene.graph import MeshData, Scene
-from ..shaders import set_uniform, uniform_names
+from ..shaders import mat_bytes, set_uniform, uniform_names
+from .draw_cache import material_key
 
 
 @dataclass
@@ -28,8 +29,6 @@ class Draw:
 
     def write_transform(self, prog) -> None:
         """Write the model and normal matrices a program uses (the DrawCache's bytes when it made them)."""
-        from .frame import mat_bytes
-
         set_uniform(prog, "gua_model_matrix", self.model_bytes or mat_bytes(self.world))
         if "gua_normal_matrix" in uniform_names(prog):  # the inverse only where it is used
             set_uniform(prog, "gua_normal_matrix", self.normal_bytes or mat_bytes(np.linalg.inv(self.world).T))
@@ -97,8 +96,6 @@ def build_draw_list(scene: Scene, materials: MaterialRegistry, cache=None) -> li
 
 
 def _build_cached(scene: Scene, materials: MaterialRegistry, cache) -> list[Draw]:
-    from .draw_cache import material_key
-
     draws: list[Draw] = []
 
     def resolver(inst):

@@ -11,16 +11,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..shaders import set_uniforms
+from ..shaders import mat_bytes, set_uniforms
 
 if TYPE_CHECKING:
     from ..scene.graph import Scene
     from .drawlist import Draw
-
-
-def mat_bytes(m: np.ndarray) -> bytes:
-    """A float64 row-major numpy matrix as the column-major float32 bytes GL expects."""
-    return np.ascontiguousarray(np.asarray(m, dtype=np.float32).T).tobytes()
 
 
 @dataclass
