@@ -11,6 +11,7 @@ import pytest
 from test_imports import import_graph
 
 from guaca_py.errors import ConfigError
+from guaca_py.methods import MethodSpec, TransparencyMethod
 from guaca_py.registry import METHODS, PASSES, Registry, register
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -33,6 +34,26 @@ def test_every_pass_and_method_is_registered_under_its_key():
         assert cls.id == mid
         # a count of geometry passes, or the rule `guaca methods` shows where the scene decides
         assert (cls.geometry_passes is None) == bool(cls.geometry_passes_rule), mid
+
+
+def test_methods_are_one_level_below_the_interface():
+    # each class implementing methods derives from TransparencyMethod directly; methods that differ
+    # only by options share one class (a MethodSpec each)
+    specs = [METHODS.get(m) for m in METHODS.names()]
+    assert all(isinstance(s, MethodSpec) for s in specs)
+    impls = {s.impl for s in specs}
+    assert {c.__name__ for c in impls} == {"ABuffer", "CountedStorage", "ForwardBlend", "KBuffer", "Peeling"}
+    assert set(TransparencyMethod.__subclasses__()) == impls
+    assert all(c.__mro__ == (c, TransparencyMethod, object) and not c.__subclasses__() for c in impls)
+    assert [s.id for s in specs if s.impl.__name__ == "ABuffer"] == [
+        "post_merge16",
+        "post_sort",
+        "presort_cs",
+        "presort_cs_et",
+        "presort_lf",
+        "presort_lf_et",
+        "presort_lf_merge2_et",
+    ]
 
 
 def test_register_refuses_a_second_class_under_a_key_and_a_class_without_one():

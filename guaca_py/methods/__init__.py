@@ -1,24 +1,23 @@
 """Transparency methods: every OIT strategy of the same deferred pipeline.
 
-Each method class registers itself with `@register("method")` (guaca_py/registry.py); importing
-this package imports every module that defines one.
+Each method is a MethodSpec (its id, the class implementing it and that class's options)
+registered with `register("method")` (guaca_py/registry.py) in the module of the class; importing
+this package imports every such module.
 """
 
 from __future__ import annotations
 
 from ..registry import METHODS
 from . import (  # noqa: F401  (imported to register their methods)
-    abuffer_variants,
+    abuffer,
     approximate,
     counted,
     kbuffer,
     peeling,
     peeling_coherent,
     peeling_multilayer,
-    presort_lf,
-    stochastic,
 )
-from .base import TransparencyMethod
+from .base import MethodSpec, TransparencyMethod
 
 
 def method_ids() -> list[str]:
@@ -31,9 +30,9 @@ def require_method_id(mid: str, where: str) -> None:
     METHODS.require(mid, where)
 
 
-def method_class(mid: str) -> type[TransparencyMethod]:
-    """The class implementing method `mid`."""
+def method_class(mid: str) -> MethodSpec:
+    """What builds method `mid`: call it as a class, spec(settings, caps); it answers the method's facts (exact, ...)."""
     return METHODS.get(mid)
 
 
-__all__ = ["TransparencyMethod", "method_ids", "method_class", "require_method_id"]
+__all__ = ["MethodSpec", "TransparencyMethod", "method_ids", "method_class", "require_method_id"]

@@ -1,22 +1,36 @@
-"""Approximate forward-blending references: unsorted and object-sorted alpha blending, weighted blended OIT.
+"""Approximate forward blending: unsorted and object-sorted alpha blending, weighted blended OIT and
+stochastic transparency, as one class with one record of options each.
 
 These methods shade each transparent fragment while it is drawn (with the composite's shared
 shade_surface and the frame's culled lights, hence `geometry_in_composite`) and blend it into
 accumulation targets that test against the G-buffer depth; the composite then puts the
 accumulated layer, as premultiplied color and coverage, in front of the shaded opaque surface.
+
+Stochastic transparency (Enderton et al. 2010, with the alpha-corrected accumulation pass) draws
+twice. S samples per pixel are emulated with S depth words per pixel in a storage buffer
+(llvmpipe's MSAA stops at 8 samples and the pipeline's G-buffer is single-sampled), so any S up
+to 32 works on every device. Pass 1 gives each fragment a random coverage mask of exactly
+floor(alpha*S + u) distinct samples (stratified alpha-to-coverage with an unbiased count; masks
+are hashed from pixel, draw, primitive and a seed, so images are reproducible) and keeps the
+nearest covering depth per sample. Pass 2 shades each fragment, estimates its visibility as the
+fraction of samples not covered in front of it, and accumulates alpha*vis*color, alpha*vis and
+the revealage prod(1 - alpha); the composite scales the estimated color by the exact coverage
+(the paper's alpha correction) or, with `alpha_correction: false`, uses the raw estimate.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..gpu_timer import SamplesQuery
+from ..limits import require_bytes
 from ..pipeline.settings import Setting
 from ..registry import register
 from ..shaders import set_uniform
-from .base import TransparencyMethod
+from .base import MethodSpec, TransparencyMethod
 
 _FILL_GROUPS_MAX = 4096
 
@@ -40,17 +54,27 @@ def world_bbox_centre(draw) -> np.ndarray:
     return 0.5 * (world.min(axis=0) + world.max(axis=0))
 
 
-class ForwardBlendMethod(TransparencyMethod):
-    """Shared machinery: accumulation targets on the G-buffer depth, in-place shading, fragment counts."""
+@dataclass(frozen=True)
+class BlendKind:
+    """How a forward-blending method accumulates and in which order it submits the draws."""
+
+    # "over" (premultiplied back-to-front), "weighted" (McGuire & Bavoil) or "stochastic" (Enderton
+    # et al.): the variant of approx/blend_fragment.glsl.j2 and approx/blend_resolve.glsl.j2
+    blend: str
+    object_sorted: bool = False  # draws back to front by world bounding-box centre distance
+
+
+class ForwardBlend(TransparencyMethod):
+    """Accumulation targets on the G-buffer depth, in-place shading, fragment counts."""
 
     exact = False
     geometry_in_composite = True
     antialiasing_refusal = "it blends in hardware into one colour per pixel, with no per-sample storage"
-    blend = "over"  # template variant of approx/blend_fragment.glsl.j2
-    accum_dtype = "f4"
 
-    def __init__(self, settings, caps):
-        super().__init__(settings, caps)
+    def __init__(self, spec, settings, caps):
+        super().__init__(spec, settings, caps)
+        self.kind: BlendKind = spec.options
+        self.blend = self.kind.blend
         self._phase = "composite"  # template variant: geometry phases add the lighting variables
         self._shading: dict = {}
         self._fbo = self._clear = None
@@ -63,11 +87,28 @@ class ForwardBlendMethod(TransparencyMethod):
         self._parity = 0
         self._counted: dict = {}  # this frame's queries by count name
         self._previous: dict | None = None  # the previous frame's, in a loop without read-back
+        self._depth = None  # stochastic: S depth words per pixel
+        self._depth_pixels = 0
+
+    @property
+    def accum_dtype(self) -> str:
+        """Accumulation texture dtype (weighted blending: from the accum_format setting)."""
+        if self.blend == "weighted" and self.settings["accum_format"] == "rgba16f":
+            return "f2"
+        return "f4"
+
+    @property
+    def samples(self) -> int:
+        """S, the coverage samples per pixel of stochastic transparency."""
+        return int(self.settings["samples"])
 
     # ------------------------------------------------------------------ storage
     def _target_specs(self) -> list[tuple[int, str, tuple]]:
         """(components, dtype, clear value) of each accumulation target."""
-        return [(4, self.accum_dtype, (0.0, 0.0, 0.0, 0.0))]
+        if self.blend == "over":
+            return [(4, self.accum_dtype, (0.0, 0.0, 0.0, 0.0))]
+        # target 0: rgb sum of w*color, a revealage (starts at 1); target 1: r sum of weights
+        return [(4, self.accum_dtype, (0.0, 0.0, 0.0, 1.0)), (1, self.accum_dtype, (0.0, 0.0, 0.0, 0.0))]
 
     def _alloc(self, frame) -> None:
         depth = frame.resources["gbuffer"]["depth"]
@@ -83,16 +124,39 @@ class ForwardBlendMethod(TransparencyMethod):
         self._key, self._pixels = key, frame.pixel_count
 
     def prepare(self, frame) -> None:
-        """Allocate (on resolution change) and clear the accumulation targets."""
+        """Allocate (on resolution change) and clear the accumulation targets; stochastic: the depth words, set to 'far'."""
         self._shading = frame.shading_vars()
         self._alloc(frame)
         for fbo, (_, _, value) in zip(self._clear, self._target_specs()):
             fbo.clear(*value)
+        if self.blend == "stochastic":
+            self._prepare_sample_depths(frame)
+
+    def _prepare_sample_depths(self, frame) -> None:
+        words = frame.pixel_count * self.samples
+        if self._depth is None or self._depth_pixels != frame.pixel_count:
+            require_bytes(
+                self.caps.limits,
+                words * 4,
+                "transparency.samples",
+                f"lower samples (now {self.samples}) or the resolution",
+            )
+            if self._depth is not None:
+                self._depth.release()
+            self._depth = frame.ctx.buffer(reserve=words * 4)
+            self._depth_pixels = frame.pixel_count
+        fill_uint_buffer(frame, self._depth, words, 0xFFFFFFFF)
 
     # ------------------------------------------------------------------ drawing
     def draw_order(self, frame) -> list | None:
-        """Transparent draws in the order to submit them (None: as listed)."""
-        return None
+        """Transparent draws in the order to submit them (None: as listed); object-sorted: farthest
+        bounding-box centre first, equal distances in submission order."""
+        if not self.kind.object_sorted:
+            return None
+        eye = frame.camera_position
+        draws = frame.transparent_draws
+        dist = [float(np.linalg.norm(world_bbox_centre(d) - eye)) for d in draws]
+        return [draws[i] for i in sorted(range(len(draws)), key=lambda i: -dist[i])]
 
     def blend_state(self, mgl) -> tuple:
         """Blend factors (src rgb, dst rgb, src alpha, dst alpha) of the accumulation."""
@@ -142,10 +206,38 @@ class ForwardBlendMethod(TransparencyMethod):
         return {name: int(q.samples) for name, q in now.items()}
 
     def render_transparent(self, frame) -> None:
-        """One geometry pass, shading and blending every transparent fragment in front of the opaque depth."""
+        """One geometry pass, shading and blending every transparent fragment in front of the opaque depth
+        (stochastic: a depth pass over the coverage samples first, then the shaded accumulation)."""
+        if self.blend == "stochastic":
+            self._stochastic_passes(frame)
+            return
         self._phase = "geometry"
         try:
             self._blended_pass(frame)
+        finally:
+            self._phase = "composite"
+
+    def _stochastic_passes(self, frame) -> None:
+        """Pass 1 stochastic depth (depth test only), pass 2 shaded accumulation."""
+        mgl = frame.renderer.moderngl
+        ctx = frame.ctx
+        uniforms = {"gua_stoch_seed": int(self.settings["seed"]) & 0xFFFFFFFF}
+        g = frame.resources["gbuffer"]
+        try:
+            self._phase = "depth"
+            g["depth_only"].depth_mask = False
+            g["depth_only"].use()
+            ctx.enable(mgl.DEPTH_TEST)
+            ctx.disable(mgl.BLEND)
+            ctx.depth_func = "<"
+            self._depth.bind_to_storage_buffer(0)
+            with self.samples_query(ctx, "depth_pass"):  # reported beside 'blended' (finish)
+                frame.draw_transparent(uniforms)
+            g["depth_only"].depth_mask = True
+            ctx.memory_barrier()
+            self._phase = "accum"
+            self._depth.bind_to_storage_buffer(0)
+            self._blended_pass(frame, uniforms)
         finally:
             self._phase = "composite"
 
@@ -159,7 +251,9 @@ class ForwardBlendMethod(TransparencyMethod):
 
     # ------------------------------------------------------------------ shaders
     def fragment_template(self) -> str:
-        """In-place shading and blending."""
+        """In-place shading and blending (stochastic: both passes, selected by the phase)."""
+        if self.blend == "stochastic":
+            return "approx/stochastic_fragment.glsl.j2"
         return "approx/blend_fragment.glsl.j2"
 
     def resolve_template(self) -> str:
@@ -167,10 +261,14 @@ class ForwardBlendMethod(TransparencyMethod):
         return "approx/blend_resolve.glsl.j2"
 
     def template_vars(self) -> dict:
-        """Blend variant; while drawing, the lighting variables of shading/lighting.glsl.j2 too."""
+        """Blend variant and its settings; while drawing, the lighting variables of shading/lighting.glsl.j2 too."""
         v = {"approx_blend": self.blend, "approx_phase": self._phase, "approx_normalize": True}
         if self._phase != "composite":  # the composite adds its own lighting variables
             v.update(self._shading)
+        if self.blend == "weighted":
+            v["wboit_weight"] = self.settings["weight"]
+        elif self.blend == "stochastic":
+            v.update(samples=self.samples, approx_normalize=bool(self.settings["alpha_correction"]))
         return v
 
     def bind_composite(self, frame, program) -> None:
@@ -180,9 +278,12 @@ class ForwardBlendMethod(TransparencyMethod):
             set_uniform(program, name, unit)
 
     def memory(self) -> dict:
-        """Bytes of the accumulation targets (dense: every byte allocated is used)."""
+        """Bytes of the accumulation targets (dense: every byte allocated is used); stochastic: the depth words."""
         total = sum(self._pixels * n * (4 if dt == "f4" else 2) for n, dt, _ in self._target_specs())
-        return {"blend_accum": total, "blend_accum_used": total} if self._targets else {}
+        mem = {"blend_accum": total, "blend_accum_used": total} if self._targets else {}
+        if self._depth is not None:
+            mem["stochastic_depth"] = mem["stochastic_depth_used"] = self._depth_pixels * self.samples * 4
+        return mem
 
     def _release_targets(self) -> None:
         for f in self._clear or []:
@@ -194,72 +295,72 @@ class ForwardBlendMethod(TransparencyMethod):
         self._fbo, self._clear, self._targets, self._key = None, None, [], None
 
     def release(self) -> None:
-        """Free the targets and the queries."""
+        """Free the targets, the queries and the depth words."""
         self._release_targets()
         for q in self._queries.values():
             q.release()
         self._queries.clear()
         self._counted, self._previous = {}, None
-
-
-@register("method")
-class UnsortedBlend(ForwardBlendMethod):
-    """Hardware alpha blending in submission order: the floor (exact for back-to-front, non-crossing layers)."""
-
-    id = "unsorted_blend"
-    summary = "back-to-front 'over' blending in submission order, no sorting (approximate floor)"
-
-
-@register("method")
-class ObjectSortedBlend(ForwardBlendMethod):
-    """Blending of draws sorted back to front by bounding-box centre distance (exact for separable layers)."""
-
-    id = "object_sorted_blend"
-    summary = "'over' blending of draws sorted back to front by world bounding-box centre distance"
-
-    def draw_order(self, frame) -> list:
-        """Farthest bounding-box centre first; equal distances keep submission order."""
-        eye = frame.camera_position
-        draws = frame.transparent_draws
-        dist = [float(np.linalg.norm(world_bbox_centre(d) - eye)) for d in draws]
-        return [draws[i] for i in sorted(range(len(draws)), key=lambda i: -dist[i])]
+        if self._depth is not None:
+            self._depth.release()
+            self._depth = None
 
 
 def _weights(v) -> str | None:
     return None if v in ("eq7", "eq8", "eq9", "eq10") else f"must be eq7, eq8, eq9 or eq10, got {v!r}"
 
 
-@register("method")
-class WeightedBlended(ForwardBlendMethod):
-    """Weighted blended OIT (McGuire & Bavoil, JCGT 2013): weighted average color, exact coverage."""
+def _samples(v) -> str | None:
+    return None if 1 <= v <= 32 else f"must be between 1 and 32, got {v}"
 
-    id = "weighted_blended"
-    blend = "weighted"
-    summary = "weighted blended OIT: depth-weighted average color, exact revealage (McGuire & Bavoil 2013)"
-    SETTINGS = {
-        "weight": Setting(
-            (str,),
-            "eq7",
-            "depth weight function of the paper: eq7, eq8, eq9 (view depth) or eq10 (window depth)",
-            check=_weights,
-        ),
-        "accum_format": Setting(
-            (str,),
-            "rgba32f",
-            "accumulation precision (the paper uses rgba16f; sums of large weights can exceed half-float range)",
-            choices=("rgba16f", "rgba32f"),
-        ),
-    }
 
-    @property
-    def accum_dtype(self) -> str:
-        """Accumulation texture dtype from the setting."""
-        return "f2" if self.settings["accum_format"] == "rgba16f" else "f4"
-
-    def _target_specs(self):
-        # target 0: rgb sum of w*color, a revealage (starts at 1); target 1: r sum of weights
-        return [(4, self.accum_dtype, (0.0, 0.0, 0.0, 1.0)), (1, self.accum_dtype, (0.0, 0.0, 0.0, 0.0))]
-
-    def template_vars(self) -> dict:
-        """Weight function on top of the shared variables."""
-        return {**super().template_vars(), "wboit_weight": self.settings["weight"]}
+for _spec in (
+    # the floor: exact for back-to-front, non-crossing layers
+    MethodSpec(
+        "unsorted_blend",
+        "back-to-front 'over' blending in submission order, no sorting (approximate floor)",
+        ForwardBlend,
+        BlendKind("over"),
+    ),
+    # exact for separable layers
+    MethodSpec(
+        "object_sorted_blend",
+        "'over' blending of draws sorted back to front by world bounding-box centre distance",
+        ForwardBlend,
+        BlendKind("over", object_sorted=True),
+    ),
+    # McGuire & Bavoil, JCGT 2013: weighted average color, exact coverage
+    MethodSpec(
+        "weighted_blended",
+        "weighted blended OIT: depth-weighted average color, exact revealage (McGuire & Bavoil 2013)",
+        ForwardBlend,
+        BlendKind("weighted"),
+        {
+            "weight": Setting(
+                (str,),
+                "eq7",
+                "depth weight function of the paper: eq7, eq8, eq9 (view depth) or eq10 (window depth)",
+                check=_weights,
+            ),
+            "accum_format": Setting(
+                (str,),
+                "rgba32f",
+                "accumulation precision (the paper uses rgba16f; sums of large weights can exceed half-float range)",
+                choices=("rgba16f", "rgba32f"),
+            ),
+        },
+    ),
+    MethodSpec(
+        "stochastic",
+        "stochastic transparency: random coverage samples + alpha-corrected accumulation (Enderton 2010)",
+        ForwardBlend,
+        BlendKind("stochastic"),
+        {
+            "samples": Setting((int,), 8, "coverage samples per pixel (S, 1..32)", check=_samples),
+            "seed": Setting((int,), 0, "seed of the coverage masks (same seed, same image)"),
+            "alpha_correction": Setting((bool,), True, "normalize the estimate by the exact total coverage"),
+        },
+        geometry_passes=2,
+    ),
+):
+    register("method")(_spec)

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, ClassVar
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, ClassVar
 
 from ..errors import UnsupportedMethodError
 from ..pipeline.settings import NUMBER, Setting, unit_interval
@@ -15,6 +17,67 @@ if TYPE_CHECKING:
 
 # Extensions that only mean something in a fragment shader; the composite resolve is compute.
 _FRAGMENT_ONLY_EXTENSIONS = ("GL_ARB_fragment_shader_interlock", "GL_EXT_shader_framebuffer_fetch")
+# settings every method accepts under `transparency:`
+COMMON_SETTINGS: dict[str, Setting] = {
+    "threshold": Setting(NUMBER, 0.98, "saturation threshold for early termination", check=unit_interval),
+    "raster": RASTER_SETTING,
+    "raster_order": RASTER_ORDER_SETTING,
+}
+
+
+@dataclass(frozen=True)
+class MethodSpec:
+    """One transparency method as `transparency.method` names it, registered with `register("method")`.
+
+    A method is the class that implements it (`impl`, derived from TransparencyMethod) and the
+    record of options that class is built with: one class serves every method that differs from
+    another only by options (the seven one-pass A-buffer methods are one class). Call a spec as
+    a class: `spec(settings, caps)` is the method. The implementation's own facts (exact,
+    compute_raster, ...) read through, so the spec answers what `guaca methods` and the checks
+    before a method is built ask.
+    """
+
+    id: str
+    summary: str
+    impl: type[TransparencyMethod]
+    options: Any = None  # the implementation's record of options for this method
+    settings: Mapping[str, Setting] = field(default_factory=dict)  # beyond COMMON_SETTINGS
+    # geometry passes a frame with transparent draws takes, or None where the scene decides
+    # (peeling); geometry_passes_rule then says how, for `guaca methods`
+    geometry_passes: int | None = 1
+    geometry_passes_rule: str = ""
+
+    def __call__(self, settings: dict, caps: Capabilities) -> TransparencyMethod:
+        """The method, with validated `settings` (see Renderer's method_settings), for the device of `caps`."""
+        return self.impl(self, settings, caps)
+
+    def settings_schema(self) -> dict[str, Setting]:
+        """Settings accepted under `transparency:` for this method (common ones included)."""
+        return {**COMMON_SETTINGS, **self.settings}
+
+    def unsupported_reason(self, caps: Capabilities) -> str | None:
+        """Why this device cannot run the method, or None when it can."""
+        return self.impl.unsupported_reason(caps, self.options)
+
+    @property
+    def exact(self) -> bool:
+        """Whether the method's image is exact (else an approximation)."""
+        return self.impl.exact
+
+    @property
+    def compute_raster(self) -> bool:
+        """Whether it takes fragments from the compute rasterizer."""
+        return self.impl.compute_raster
+
+    @property
+    def supports_antialiasing(self) -> bool:
+        """Whether its fragments carry coverage masks (antialiasing.samples > 1)."""
+        return self.impl.supports_antialiasing
+
+    @property
+    def antialiasing_refusal(self) -> str:
+        """Why it cannot take antialiasing.samples > 1, where it cannot."""
+        return self.impl.antialiasing_refusal
 
 
 class TransparencyMethod:
@@ -31,22 +94,20 @@ class TransparencyMethod:
 
     Texture units: 0-3 G-buffer inputs of the composite, 4-7 the method's own composite
     inputs, 8+ material textures. SSBO bindings: 0-2 method storage, 3 lights, 4-7 method.
+
+    Each concrete class derives from this one directly and is registered through MethodSpec
+    records, one per method id it implements; what its methods share beyond this interface it
+    holds as components or plain functions, not as base classes.
     """
 
-    id: ClassVar[str] = ""
     exact: ClassVar[bool] = True
-    # geometry passes a frame with transparent draws takes, or None where the scene decides (peeling);
-    # geometry_passes_rule then says how, for `guaca methods`
-    geometry_passes: ClassVar[int | None] = 1
-    geometry_passes_rule: ClassVar[str] = ""
-    summary: ClassVar[str] = ""
-    SETTINGS: ClassVar[dict[str, Setting]] = {}
     geometry_in_composite: ClassVar[bool] = False
     compute_raster: ClassVar[bool] = False  # takes fragments from the compute rasterizer (docs/raster.md)
     # antialiasing.samples > 1 (docs/antialiasing.md): nodes carry coverage masks, resolved per sample
     supports_antialiasing: ClassVar[bool] = False
     antialiasing_refusal: ClassVar[str] = "its fragments carry no coverage mask"
     aa_samples: int = 1  # samples per pixel (antialiasing.samples), set by the renderer
+    early_termination: bool = False  # insertion stops where the pixel is saturated in front
     # why `raster: auto` should take the compute rasterizer for draws of every triangle size (set
     # by a method whose fragment-shader path would be slow with the choices it made), or None
     auto_compute_reason: str | None = None
@@ -64,25 +125,26 @@ class TransparencyMethod:
         # the pool, where insertion walks and the composite read them: hairball_v2 presort_lf 161 ->
         # 28.4 ms, post_sort 330 (mesh order) -> 29.3, post_merge16 787 -> 93; the dragons lose
         # ~1 ms (post_sort 3.4 -> 4.4), Sponza is within 0.5 ms either way.
-        return "depth" if getattr(self, "early_termination", False) else "tile"
+        return "depth" if self.early_termination else "tile"
 
-    def __init__(self, settings: dict, caps: Capabilities):
+    def __init__(self, spec: MethodSpec, settings: dict, caps: Capabilities):
+        self.spec = spec
         self.settings = settings
         self.caps = caps
 
-    @classmethod
-    def settings_schema(cls) -> dict[str, Setting]:
-        """Settings accepted under `transparency:` for this method (common ones included)."""
-        common = {
-            "threshold": Setting(NUMBER, 0.98, "saturation threshold for early termination", check=unit_interval),
-            "raster": RASTER_SETTING,
-            "raster_order": RASTER_ORDER_SETTING,
-        }
-        return {**common, **cls.SETTINGS}
+    @property
+    def id(self) -> str:
+        """The method's id (transparency.method)."""
+        return self.spec.id
+
+    @property
+    def geometry_passes(self) -> int | None:
+        """Geometry passes a frame with transparent draws takes, or None where the scene decides."""
+        return self.spec.geometry_passes
 
     @classmethod
-    def unsupported_reason(cls, caps: Capabilities) -> str | None:
-        """Why this device cannot run the method, or None when it can."""
+    def unsupported_reason(cls, caps: Capabilities, options: Any) -> str | None:
+        """Why this device cannot run the method built with `options`, or None when it can."""
         return None
 
     def compute_raster_refusal(self) -> str | None:

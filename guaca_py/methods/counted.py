@@ -4,22 +4,23 @@ dfb and sbuffer count the fragments of each pixel in a first geometry pass, turn
 per-pixel ranges of one fragment array sized exactly to the frame's total (read back as one
 word), and store the shaded-later payload of every fragment in a second pass. paged_ll stores
 into pages of P fragments linked per pixel in a single pass and grows its page pool on overflow.
-All three resolve by sorting each pixel's fragments by (depth, tie id) in the composite pass.
+All three resolve by sorting each pixel's fragments by (depth, tie id) in the composite pass, and
+share one class: the storage layout (`dfb`, `sbuffer` or `paged`) is each method's option.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..gpu_counters import CounterBlock, StagedReader
-from ..pipeline.settings import Setting, non_negative, positive
+from ..pipeline.settings import Setting, auto_or_positive_mb, non_negative, positive
 from ..prefix_sum import GpuFill, PrefixSum, dispatch_grid
 from ..registry import register
 from ..shaders import set_uniform
-from .base import TransparencyMethod
-from .presort_lf import _budget
+from .base import MethodSpec, TransparencyMethod
 
 PAYLOAD_BYTES = 32  # common/payload_pack.glsl.j2: 8 words per fragment
 COUNTERS = ("stored", "overflow", "alloc", "wasted_pages", "guard")
@@ -37,21 +38,35 @@ def _page_check(v) -> str | None:
     return None if 1 <= v <= 64 else f"must be in 1..64, got {v}"
 
 
-class _CountedStorage(TransparencyMethod):
-    """Shared storage, counters, GL state and resolve of the counted-storage methods."""
+_PHASE_TEMPLATES = {
+    "count": "counted/count.glsl.j2",
+    "store": "counted/store.glsl.j2",
+    "insert": "counted/paged_insert.glsl.j2",
+}
+# storage binding -> buffer name, per layout (counted/*.glsl.j2)
+_BINDINGS = {
+    "dfb": {0: "pixels", 1: "nodes", 2: "counts", 4: "counters"},
+    "sbuffer": {0: "pixels", 1: "nodes", 2: "counts", 4: "counters", 5: "group_base"},
+    "paged": {0: "pixels", 1: "nodes", 2: "links", 4: "counters"},
+}
+
+
+@dataclass(frozen=True)
+class CountedKind:
+    """Where a counted-storage method puts each pixel's fragments."""
+
+    layout: str  # "dfb" (counted, scanned over all pixels), "sbuffer" (counted, S shared counters) or "paged"
+
+
+class CountedStorage(TransparencyMethod):
+    """Per-pixel fragment storage sized from counts (dfb, sbuffer) or grown in pages (paged_ll), sorted at resolve."""
 
     antialiasing_refusal = "its counted records carry no coverage mask (counting and storing passes are per pixel)"
 
-    layout: str = ""
-    SETTINGS = {
-        "budget_mb": Setting(
-            (str, int, float), "auto", "cap on fragment storage in MB, or 'auto' (the frame's need)", check=_budget
-        ),
-        "sort_chunk": Setting((int,), 32, "fragments sorted per resolve sweep (local array size)", check=_chunk),
-    }
-
-    def __init__(self, settings, caps):
-        super().__init__(settings, caps)
+    def __init__(self, spec, settings, caps):
+        super().__init__(spec, settings, caps)
+        self.layout = spec.options.layout
+        self.paged = self.layout == "paged"
         self.phase = "resolve"
         self._pixels = 0
         self._bufs: dict = {}
@@ -59,6 +74,12 @@ class _CountedStorage(TransparencyMethod):
         self._counters: CounterBlock | None = None
         self._reader: StagedReader | None = None
         self._last: dict = {}
+        if self.paged:
+            self.page = int(settings["page_size"])
+            self.fill_bits = max(1, self.page.bit_length())  # holds 0..P
+            self.page_bytes = self.page * PAYLOAD_BYTES + 4  # payload slots + link
+            self.capacity = 0  # pages in the pool, null page 0 included
+            self._want = 0  # pool size requested for the next prepare()
 
     # ------------------------------------------------------------------ helpers
     def _tools(self, frame) -> None:
@@ -97,9 +118,6 @@ class _CountedStorage(TransparencyMethod):
             self._counters = CounterBlock(ctx, COUNTERS)
         self._counters.reset(alloc=alloc_start)
 
-    def _read_counters(self) -> dict:
-        return self._counters.read()
-
     def _state_begin(self, frame) -> None:
         """Transparent draws test against the opaque depth without writing it."""
         mgl = frame.renderer.moderngl
@@ -116,90 +134,56 @@ class _CountedStorage(TransparencyMethod):
         frame.ctx.memory_barrier()
 
     def _bind(self) -> None:
-        for binding, name in self._bindings().items():
+        for binding, name in _BINDINGS[self.layout].items():
             if name == "counters":
                 self._counters.bind(binding)
             else:
                 self._bufs[name].bind_to_storage_buffer(binding)
 
-    def _bindings(self) -> dict[int, str]:
-        raise NotImplementedError
-
     def _warn(self, frame, text: str) -> None:
         frame.stats.setdefault("warnings", []).append(text)
 
-    # ------------------------------------------------------------------ shaders
-    _PHASE_TEMPLATES = {
-        "count": "counted/count.glsl.j2",
-        "store": "counted/store.glsl.j2",
-        "insert": "counted/paged_insert.glsl.j2",
-    }
-    first_phase = "count"
-
-    def fragment_template(self) -> str:
-        """The current geometry phase's code (count, store or paged insert)."""
-        return self._PHASE_TEMPLATES.get(self.phase, self._PHASE_TEMPLATES[self.first_phase])
-
-    def template_vars(self) -> dict:
-        """Storage layout, the current phase (count/store/insert/resolve) and the sort chunk."""
-        return {"cs_layout": self.layout, "phase": self.phase, "sort_chunk": int(self.settings["sort_chunk"])}
-
-    def resolve_template(self) -> str:
-        """Chunked sort + front-to-back blend of each pixel's fragments."""
-        return "counted/resolve.glsl.j2"
-
-    def bind_composite(self, frame, program) -> None:
-        """The composite reads the same storage."""
-        self.phase = "resolve"
-        self._bind()
-        set_uniform(program, "gua_cs_capacity", self._capacity_uniform())
-
-    def _capacity_uniform(self) -> int:
-        raise NotImplementedError
-
-    def composite_threshold(self) -> float:
-        """Exact: the walk only stops at full opacity."""
-        return 1.0
-
-    def release(self) -> None:
-        """Free all buffers."""
-        for b in self._bufs.values():
-            b.release()
-        self._bufs = {}
-        for obj in (self._scan, self._counters, self._reader):
-            if obj is not None:
-                obj.release()
-        self._scan = self._counters = self._reader = None
-        self._pixels = 0
-
-
-@register("method")
-class DynamicFragmentBuffer(_CountedStorage):
-    """DFB: count pass, GPU prefix sum over all pixels, exact allocation, store pass, sort at resolve."""
-
-    id = "dfb"
-    exact = True
-    geometry_passes = 2
-    summary = "dynamic fragment buffer: count, prefix sum, exact per-pixel arrays, sort at resolve"
-    layout = "dfb"
-
-    def _bindings(self) -> dict[int, str]:
-        return {0: "pixels", 1: "nodes", 2: "counts", 4: "counters"}
-
-    def _capacity_uniform(self) -> int:
-        return self._last.get("capacity", 0)
-
-    def _pixel_buffers(self, frame) -> None:
-        """Per-pixel buffers of this layout (resized with the frame)."""
-        n = frame.pixel_count
-        self._buffer(frame.ctx, "pixels", (n + 1) * 4)
-
+    # ------------------------------------------------------------------ frame
     def prepare(self, frame) -> None:
-        """Size per-pixel buffers, zero the counts and counters."""
+        """Size the storage and zero what the geometry passes count into."""
         self._tools(frame)
+        if self.paged:
+            self._prepare_pages(frame)
+        else:
+            self._prepare_arrays(frame)
+
+    def render_transparent(self, frame) -> None:
+        """Count, address and store (dfb, sbuffer), or append to the pages (paged_ll)."""
+        self._state_begin(frame)
+        if self.paged:
+            self._draw(frame, "insert", {"gua_cs_capacity": self.capacity})
+        else:
+            self._count_and_store(frame)
+        self.phase = "resolve"
+        frame.resources["gbuffer"]["fbo"].depth_mask = True
+
+    def finish(self, frame) -> bool:
+        """Read the counters into frame.stats; paged_ll may grow its pool and ask for a re-render."""
+        return self._finish_pages(frame) if self.paged else self._finish_arrays(frame)
+
+    def memory(self) -> dict:
+        """Bytes of the storage, allocated and used."""
+        if not self._bufs:
+            return {}
+        return self._page_memory() if self.paged else self._array_memory()
+
+    # ------------------------------------------------------------------ dfb, sbuffer
+    def _prepare_arrays(self, frame) -> None:
+        """Size per-pixel buffers, zero the counts and counters."""
         ctx, n = frame.ctx, frame.pixel_count
         self._pixels = n
-        self._pixel_buffers(frame)
+        if self.layout == "sbuffer":
+            s = int(self.settings["counters"])
+            self._buffer(ctx, "pixels", n * 8)
+            self._buffer(ctx, "groups", s * 4)
+            self._buffer(ctx, "group_base", (s + 1) * 4)
+        else:
+            self._buffer(ctx, "pixels", (n + 1) * 4)
         self._buffer(ctx, "counts", n * 4)
         if "nodes" not in self._bufs:
             self._buffer(ctx, "nodes", PAYLOAD_BYTES)  # sized to the frame's total before the store pass
@@ -208,14 +192,30 @@ class DynamicFragmentBuffer(_CountedStorage):
         ctx.memory_barrier()
 
     def _addresses(self, frame) -> int:
-        """Per-pixel offsets from the counts; returns the frame's fragment total (one word read back)."""
-        n = frame.pixel_count
-        self._scan.run(self._bufs["counts"], self._bufs["pixels"], n)
-        return int(np.frombuffer(self._reader.read(self._bufs["pixels"], 4, n * 4), dtype=np.uint32)[0])
+        """Per-pixel offsets from the counts; returns the frame's fragment total (one word read back).
 
-    def render_transparent(self, frame) -> None:
+        dfb scans the counts of all pixels; the S-buffer reserves each pixel's range from one of S
+        counters (pixel p mod S) and scans only the S totals.
+        """
+        n = frame.pixel_count
+        if self.layout == "dfb":
+            self._scan.run(self._bufs["counts"], self._bufs["pixels"], n)
+            return int(np.frombuffer(self._reader.read(self._bufs["pixels"], 4, n * 4), dtype=np.uint32)[0])
+        s = int(self.settings["counters"])
+        self._fill.run(self._bufs["groups"], s, 0)
+        frame.ctx.memory_barrier()
+        prog = frame.renderer.shaders.compute("counted/sbuffer_address.comp.j2", counters=s)
+        self._bufs["pixels"].bind_to_storage_buffer(0)
+        self._bufs["counts"].bind_to_storage_buffer(2)
+        self._bufs["groups"].bind_to_storage_buffer(5)
+        prog["gua_pixel_count"] = n
+        prog.run(*dispatch_grid(math.ceil(n / 256)))
+        frame.ctx.memory_barrier()
+        self._scan.run(self._bufs["groups"], self._bufs["group_base"], s)
+        return int(np.frombuffer(self._reader.read(self._bufs["group_base"], 4, s * 4), dtype=np.uint32)[0])
+
+    def _count_and_store(self, frame) -> None:
         """Count pass, addressing, exact allocation, store pass."""
-        self._state_begin(frame)
         self._draw(frame, "count", {})
         total = self._addresses(frame)
         capacity = min(total, self._max_slots(frame.ctx, PAYLOAD_BYTES))
@@ -223,12 +223,10 @@ class DynamicFragmentBuffer(_CountedStorage):
         self._last = {"total": total, "capacity": capacity}
         if total:
             self._draw(frame, "store", {"gua_cs_capacity": capacity})
-        self.phase = "resolve"
-        frame.resources["gbuffer"]["fbo"].depth_mask = True
 
-    def finish(self, frame) -> bool:
-        """Read the counters into frame.stats (exact allocation: never asks for a re-render)."""
-        c = self._read_counters()
+    def _finish_arrays(self, frame) -> bool:
+        """Counters into frame.stats (exact allocation: never asks for a re-render)."""
+        c = self._counters.read()
         total, capacity = self._last["total"], self._last["capacity"]
         frame.stats["geometry_passes"] = 2
         frame.stats["fragments"] = {
@@ -254,11 +252,9 @@ class DynamicFragmentBuffer(_CountedStorage):
         self._last["stored"] = c["stored"]
         return False
 
-    def memory(self) -> dict:
-        """Per-pixel counts and offsets, fragment array (allocated == the frame's need), scan buffers."""
-        if not self._bufs:
-            return {}
-        return {
+    def _array_memory(self) -> dict:
+        """Per-pixel counts and offsets, fragment array (allocated == the frame's need), scan buffers; S-buffer groups."""
+        out = {
             "counted_counts": self._bufs["counts"].size,
             "counted_offsets": self._bufs["pixels"].size,
             "counted_fragments": self._bufs["nodes"].size,
@@ -266,99 +262,11 @@ class DynamicFragmentBuffer(_CountedStorage):
             "counted_scan_aux": self._scan.aux_bytes() if self._scan else 0,
             "counted_node_bytes": PAYLOAD_BYTES,
         }
-
-
-@register("method")
-class SBuffer(DynamicFragmentBuffer):
-    """S-buffer: as dfb, but pixels reserve their ranges from S counters; only the S totals are scanned."""
-
-    id = "sbuffer"
-    summary = "S-buffer: count, S shared counters + scan of the counters, exact arrays, sort at resolve"
-    layout = "sbuffer"
-    SETTINGS = {
-        **_CountedStorage.SETTINGS,
-        # Vasilakis & Fudos report about 30 counters as the sweet spot (survey §3.4).
-        "counters": Setting((int,), 32, "S: address counters shared by pixel p mod S", check=_counters_check),
-    }
-
-    def _bindings(self) -> dict[int, str]:
-        return {0: "pixels", 1: "nodes", 2: "counts", 4: "counters", 5: "group_base"}
-
-    def template_vars(self) -> dict:
-        """Adds the number of counters S."""
-        return {**super().template_vars(), "counters": int(self.settings["counters"])}
-
-    def _pixel_buffers(self, frame) -> None:
-        s = int(self.settings["counters"])
-        self._buffer(frame.ctx, "pixels", frame.pixel_count * 8)
-        self._buffer(frame.ctx, "groups", s * 4)
-        self._buffer(frame.ctx, "group_base", (s + 1) * 4)
-
-    def _addresses(self, frame) -> int:
-        """Ranges from S atomic counters, then a scan of the S group totals; returns the total."""
-        s, n = int(self.settings["counters"]), frame.pixel_count
-        self._fill.run(self._bufs["groups"], s, 0)
-        frame.ctx.memory_barrier()
-        prog = frame.renderer.shaders.compute("counted/sbuffer_address.comp.j2", counters=s)
-        self._bufs["pixels"].bind_to_storage_buffer(0)
-        self._bufs["counts"].bind_to_storage_buffer(2)
-        self._bufs["groups"].bind_to_storage_buffer(5)
-        prog["gua_pixel_count"] = n
-        prog.run(*dispatch_grid(math.ceil(n / 256)))
-        frame.ctx.memory_barrier()
-        self._scan.run(self._bufs["groups"], self._bufs["group_base"], s)
-        return int(np.frombuffer(self._reader.read(self._bufs["group_base"], 4, s * 4), dtype=np.uint32)[0])
-
-    def memory(self) -> dict:
-        """As dfb, plus the S counters and group offsets."""
-        out = super().memory()
-        if out:
+        if self.layout == "sbuffer":
             out["counted_groups"] = self._bufs["groups"].size + self._bufs["group_base"].size
         return out
 
-
-@register("method")
-class PagedLinkedLists(_CountedStorage):
-    """paged_ll: one geometry pass into per-pixel linked pages of P fragments; the page pool grows on overflow."""
-
-    id = "paged_ll"
-    exact = True
-    geometry_passes = 1
-    summary = "paged per-pixel linked lists (P fragments per page), lock-free, sort at resolve"
-    layout = "paged"
-    first_phase = "insert"
-    SETTINGS = {
-        **_CountedStorage.SETTINGS,
-        "page_size": Setting((int,), 4, "P: fragments per page", check=_page_check),
-        "max_regrow": Setting(
-            (int,), 2, "re-renders allowed to grow an 'auto' pool after overflow", check=non_negative
-        ),
-        "max_steps": Setting((int,), 4096, "bound on retries per insertion (guards against livelock)", check=positive),
-    }
-
-    def __init__(self, settings, caps):
-        super().__init__(settings, caps)
-        self.page = int(settings["page_size"])
-        self.fill_bits = max(1, self.page.bit_length())  # holds 0..P
-        self.page_bytes = self.page * PAYLOAD_BYTES + 4  # payload slots + link
-        self.capacity = 0  # pages in the pool, null page 0 included
-        self._want = 0  # pool size requested for the next prepare()
-
-    def _bindings(self) -> dict[int, str]:
-        return {0: "pixels", 1: "nodes", 2: "links", 4: "counters"}
-
-    def _capacity_uniform(self) -> int:
-        return self.capacity
-
-    def template_vars(self) -> dict:
-        """Adds page size, fill bits and the retry bound."""
-        return {
-            **super().template_vars(),
-            "page_size": self.page,
-            "fill_bits": self.fill_bits,
-            "max_steps": int(self.settings["max_steps"]),
-        }
-
+    # ------------------------------------------------------------------ paged_ll
     def _page_limit(self, ctx) -> int:
         """Most pages: storage cap, and page indices must fit the head word next to the fill."""
         return min(self._max_slots(ctx, self.page * PAYLOAD_BYTES), 2 ** (32 - self.fill_bits) - 1)
@@ -371,9 +279,8 @@ class PagedLinkedLists(_CountedStorage):
             return f"page indices are {32 - self.fill_bits} bits beside the fill count: try a smaller page_size"
         return f"capped by {self._cap_reason()}"
 
-    def prepare(self, frame) -> None:
+    def _prepare_pages(self, frame) -> None:
         """Size the page pool (requested size, previous size or a first guess), clear heads and counters."""
-        self._tools(frame)
         ctx, n = frame.ctx, frame.pixel_count
         if self._want:
             cap, self._want = self._want, 0
@@ -392,16 +299,9 @@ class PagedLinkedLists(_CountedStorage):
         self._reset_counters(ctx, alloc_start=1)  # page 0 is the null page
         ctx.memory_barrier()
 
-    def render_transparent(self, frame) -> None:
-        """One geometry pass: every fragment appends itself to its pixel's pages."""
-        self._state_begin(frame)
-        self._draw(frame, "insert", {"gua_cs_capacity": self.capacity})
-        self.phase = "resolve"
-        frame.resources["gbuffer"]["fbo"].depth_mask = True
-
-    def finish(self, frame) -> bool:
-        """Read counters; with an 'auto' budget grow the pool after overflow and ask for a re-render."""
-        c = self._read_counters()
+    def _finish_pages(self, frame) -> bool:
+        """Counters into frame.stats; with an 'auto' budget grow the pool after overflow and ask for a re-render."""
+        c = self._counters.read()
         requested = c["alloc"] - 1
         used = min(requested, self.capacity - 1)
         frame.stats["geometry_passes"] = 1
@@ -447,10 +347,8 @@ class PagedLinkedLists(_CountedStorage):
             self._want = target  # shrink for the next frame (this frame still reads the current pool)
         return False
 
-    def memory(self) -> dict:
+    def _page_memory(self) -> dict:
         """Heads, page pool (allocated and used, links included) and the bytes of stored payload."""
-        if not self._bufs:
-            return {}
         used = self._last.get("used_pages", 0)
         return {
             "counted_heads": self._pixels * 4,
@@ -459,3 +357,94 @@ class PagedLinkedLists(_CountedStorage):
             "counted_fragments_used": self._last.get("stored", 0) * PAYLOAD_BYTES,
             "counted_node_bytes": PAYLOAD_BYTES,
         }
+
+    # ------------------------------------------------------------------ shaders
+    def fragment_template(self) -> str:
+        """The current geometry phase's code (count, store or paged insert)."""
+        return _PHASE_TEMPLATES.get(self.phase, _PHASE_TEMPLATES["insert" if self.paged else "count"])
+
+    def template_vars(self) -> dict:
+        """Storage layout, the current phase (count/store/insert/resolve), the sort chunk and the layout's own."""
+        v = {"cs_layout": self.layout, "phase": self.phase, "sort_chunk": int(self.settings["sort_chunk"])}
+        if self.layout == "sbuffer":
+            v["counters"] = int(self.settings["counters"])
+        elif self.paged:
+            v.update(page_size=self.page, fill_bits=self.fill_bits, max_steps=int(self.settings["max_steps"]))
+        return v
+
+    def resolve_template(self) -> str:
+        """Chunked sort + front-to-back blend of each pixel's fragments."""
+        return "counted/resolve.glsl.j2"
+
+    def bind_composite(self, frame, program) -> None:
+        """The composite reads the same storage."""
+        self.phase = "resolve"
+        self._bind()
+        capacity = self.capacity if self.paged else self._last.get("capacity", 0)
+        set_uniform(program, "gua_cs_capacity", capacity)
+
+    def composite_threshold(self) -> float:
+        """Exact: the walk only stops at full opacity."""
+        return 1.0
+
+    def release(self) -> None:
+        """Free all buffers."""
+        for b in self._bufs.values():
+            b.release()
+        self._bufs = {}
+        for obj in (self._scan, self._counters, self._reader):
+            if obj is not None:
+                obj.release()
+        self._scan = self._counters = self._reader = None
+        self._pixels = 0
+
+
+_STORAGE_SETTINGS = {
+    "budget_mb": Setting(
+        (str, int, float),
+        "auto",
+        "cap on fragment storage in MB, or 'auto' (the frame's need)",
+        check=auto_or_positive_mb,
+    ),
+    "sort_chunk": Setting((int,), 32, "fragments sorted per resolve sweep (local array size)", check=_chunk),
+}
+
+for _spec in (
+    MethodSpec(
+        "dfb",
+        "dynamic fragment buffer: count, prefix sum, exact per-pixel arrays, sort at resolve",
+        CountedStorage,
+        CountedKind("dfb"),
+        _STORAGE_SETTINGS,
+        geometry_passes=2,
+    ),
+    MethodSpec(
+        "sbuffer",
+        "S-buffer: count, S shared counters + scan of the counters, exact arrays, sort at resolve",
+        CountedStorage,
+        CountedKind("sbuffer"),
+        {
+            **_STORAGE_SETTINGS,
+            # Vasilakis & Fudos report about 30 counters as the sweet spot (survey §3.4).
+            "counters": Setting((int,), 32, "S: address counters shared by pixel p mod S", check=_counters_check),
+        },
+        geometry_passes=2,
+    ),
+    MethodSpec(
+        "paged_ll",
+        "paged per-pixel linked lists (P fragments per page), lock-free, sort at resolve",
+        CountedStorage,
+        CountedKind("paged"),
+        {
+            **_STORAGE_SETTINGS,
+            "page_size": Setting((int,), 4, "P: fragments per page", check=_page_check),
+            "max_regrow": Setting(
+                (int,), 2, "re-renders allowed to grow an 'auto' pool after overflow", check=non_negative
+            ),
+            "max_steps": Setting(
+                (int,), 4096, "bound on retries per insertion (guards against livelock)", check=positive
+            ),
+        },
+    ),
+):
+    register("method")(_spec)

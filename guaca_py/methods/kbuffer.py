@@ -13,7 +13,7 @@ from ..limits import require_bytes
 from ..pipeline.settings import Setting
 from ..registry import register
 from .approximate import fill_uint_buffer
-from .base import LOCK_SETTING, TransparencyMethod, resolve_lock
+from .base import LOCK_SETTING, MethodSpec, TransparencyMethod, resolve_lock
 
 SLOT_BYTES = 32  # the shared 8-word fragment payload (common/payload_pack.glsl.j2)
 HEAD_BYTES = 8  # lock + fragment count
@@ -24,31 +24,14 @@ def _k(v) -> str | None:
     return None if 1 <= v <= 64 else f"must be between 1 and 64, got {v}"
 
 
-@register("method")
 class KBuffer(TransparencyMethod):
     """Fixed k slots per pixel, kept sorted at insertion under a per-pixel spin lock."""
 
-    id = "kbuffer"
     exact = False
     antialiasing_refusal = "its k fixed slots per pixel merge fragments whatever samples they cover"
-    geometry_passes = 1
-    summary = "k nearest fragments per pixel in fixed sorted slots; overflow merged or dropped"
-    SETTINGS = {
-        "k": Setting((int,), 8, "fragment slots per pixel (1..64)", check=_k),
-        "overflow": Setting(
-            (str,), "merge", "fragments beyond k: merge into the farthest slot, or drop", choices=("merge", "drop")
-        ),
-        "max_spins": Setting(
-            (int,),
-            65536,
-            "bound on lock attempts per fragment (a fragment that never wins the lock is dropped and counted)",
-            check=lambda v: None if v > 0 else "must be > 0",
-        ),
-        "lock": LOCK_SETTING,
-    }
 
-    def __init__(self, settings, caps):
-        super().__init__(settings, caps)
+    def __init__(self, spec, settings, caps):
+        super().__init__(spec, settings, caps)
         self.lock = resolve_lock(self.id, settings["lock"], caps)
         self._heads = self._slots = self._counters = None
         self._pixels = 0
@@ -176,3 +159,25 @@ class KBuffer(TransparencyMethod):
             if b is not None:
                 b.release()
         self._heads = self._slots = self._counters = None
+
+
+register("method")(
+    MethodSpec(
+        "kbuffer",
+        "k nearest fragments per pixel in fixed sorted slots; overflow merged or dropped",
+        KBuffer,
+        settings={
+            "k": Setting((int,), 8, "fragment slots per pixel (1..64)", check=_k),
+            "overflow": Setting(
+                (str,), "merge", "fragments beyond k: merge into the farthest slot, or drop", choices=("merge", "drop")
+            ),
+            "max_spins": Setting(
+                (int,),
+                65536,
+                "bound on lock attempts per fragment (a fragment that never wins the lock is dropped and counted)",
+                check=lambda v: None if v > 0 else "must be > 0",
+            ),
+            "lock": LOCK_SETTING,
+        },
+    )
+)

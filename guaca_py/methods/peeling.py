@@ -1,4 +1,4 @@
-"""Depth peeling family: depth peeling and dual depth peeling (shared machinery for all peelers).
+"""Peeling: one class for every peeling method, configured by a record each; depth and dual depth peeling.
 
 Peeling shades each peeled layer, so these methods run their geometry passes at the start of the
 composite pass (`geometry_in_composite`). A geometry pass keeps, per pixel, the nearest remaining
@@ -12,18 +12,26 @@ Why not the hardware depth test: moderngl only makes 24-bit depth textures, and 
 with deterministic ties needs a 64-bit (depth, tie) comparison. The per-pass "depth buffer" is
 therefore emulated in colour targets read and written in primitive order (framebuffer fetch, or
 images inside an ordered fragment shader interlock).
+
+The peeling methods differ in their per-pixel state (the slots of the emulated depth buffer), in
+the compute steps' variant and in their loop of geometry passes and steps: `PeelKind` records
+them, the loop as a plain function of the method (hybrid and coherent layer peeling's in
+peeling_coherent.py, multi-layer peeling's with its node pool in peeling_multilayer.py).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
 
 from ..errors import UnsupportedMethodError
 from ..gpu_counters import CounterBlock
 from ..pipeline.settings import Setting
 from ..registry import register
 from ..shaders import set_uniform
-from .base import TransparencyMethod
+from .base import MethodSpec, TransparencyMethod
 
 # Counter words of peeling/counters.glsl.j2, in order.
 COUNTERS = ("in_range", "peeled", "composited", "overflow", "alloc", "guard", "saturated", "rejected", "left")
@@ -41,6 +49,25 @@ def _non_negative(v) -> str | None:
     return None if v >= 0 else f"must be >= 0 (0 = unlimited), got {v}"
 
 
+# the settings of every peeling method
+PEEL_SETTINGS = {
+    "max_passes": Setting(
+        (int,),
+        0,
+        "cap on geometry passes per frame (0 = unlimited); layers left when it stops are reported as truncated",
+        check=_non_negative,
+    ),
+    "ordering": Setting(
+        (str,),
+        "auto",
+        "how a pass updates per-pixel state in primitive order: "
+        "'fetch' (EXT_shader_framebuffer_fetch), 'interlock' (ARB_fragment_shader_interlock) "
+        "or 'auto'",
+        choices=("auto", "fetch", "interlock"),
+    ),
+}
+
+
 def ordering_backend(setting: str, caps) -> str | None:
     """'fetch' or 'interlock' for an ordering setting on this device, or None when it has neither."""
     fetch = bool(getattr(caps, "framebuffer_fetch", False))
@@ -51,37 +78,46 @@ def ordering_backend(setting: str, caps) -> str | None:
     return "fetch" if fetch else ("interlock" if caps.fragment_interlock else None)
 
 
-class PeelingMethod(TransparencyMethod):
-    """Shared machinery: per-pixel state textures, ordered geometry passes, compute steps, counters, stats."""
+@dataclass(frozen=True)
+class PeelKind:
+    """What one peeling method chooses: its ordered per-pixel state, its steps and its loop."""
+
+    step_method: str  # `method` variable of peeling/step.comp.j2
+    render: Callable[[Peeling, Any], None]  # geometry passes and steps until done: render(method, frame)
+    # ordered per-pixel state the geometry passes read and write (the emulated depth buffer), in
+    # slot order: (texture name, components of uint32, value the init step clears it to in GLSL)
+    slots: tuple[tuple[str, int, str], ...] = ()
+    has_back: bool = False  # a back accumulation (dual)
+    has_range: bool = False  # a per-pixel compositing range texture (hybrid, coherent)
+    needs_ordering: bool = True  # geometry passes read-modify-write per-pixel state in primitive order
+    # dual: its pass also reads the bounds in order (slot 0): cheaper than a texture fetch on llvmpipe
+    bounds_in_order: bool = False
+    # dual: the init step starts each pixel's upper bound at its opaque depth (the pass tests only the bounds)
+    upper_opaque: bool = False
+    # storage of its own beside the textures (multi-layer peeling's node pool): made as storage(method)
+    storage: Callable[[Peeling], Any] | None = None
+
+
+# the payload (8 words) of each pixel's nearest remaining fragment: the emulated depth buffer of
+# depth peeling (word 0 depth, word 7 tie); empty is key (+inf, max tie)
+NEAREST_PAYLOAD = (("payload0", 4, EMPTY_NEAR), ("payload1", 4, EMPTY_NEAR_TIE))
+
+
+class Peeling(TransparencyMethod):
+    """Per-pixel state textures, ordered geometry passes, compute steps, counters and stats of every peeling method."""
 
     exact = True
     geometry_in_composite = True
     antialiasing_refusal = "it peels one depth per pixel and pass, so a layer cannot differ between samples"
-    needs_ordering = True  # geometry passes read-modify-write per-pixel state in primitive order
-    step_method = ""  # `method` variable of peeling/step.comp.j2
-    has_back = False  # a back accumulation (dual)
-    has_range = False  # a per-pixel compositing range texture (hybrid, coherent)
-    SETTINGS = {
-        "max_passes": Setting(
-            (int,),
-            0,
-            "cap on geometry passes per frame (0 = unlimited); layers left when it stops are reported as truncated",
-            check=_non_negative,
-        ),
-        "ordering": Setting(
-            (str,),
-            "auto",
-            "how a pass updates per-pixel state in primitive order: "
-            "'fetch' (EXT_shader_framebuffer_fetch), 'interlock' (ARB_fragment_shader_interlock) "
-            "or 'auto'",
-            choices=("auto", "fetch", "interlock"),
-        ),
-    }
 
-    def __init__(self, settings, caps):
-        super().__init__(settings, caps)
-        self.order = ordering_backend(settings.get("ordering", "auto"), caps) if self.needs_ordering else None
-        if self.needs_ordering and self.order is None:
+    def __init__(self, spec, settings, caps):
+        super().__init__(spec, settings, caps)
+        self.kind: PeelKind = spec.options
+        self.step_method = self.kind.step_method
+        self.has_back, self.has_range = self.kind.has_back, self.kind.has_range
+        needs_ordering = self.kind.needs_ordering
+        self.order = ordering_backend(settings.get("ordering", "auto"), caps) if needs_ordering else None
+        if needs_ordering and self.order is None:
             raise UnsupportedMethodError(
                 f"method '{self.id}' with ordering '{settings.get('ordering')}' cannot run "
                 f"on {caps.renderer}: the device lacks that extension"
@@ -93,13 +129,14 @@ class PeelingMethod(TransparencyMethod):
         self._counters = None
         self._fbos: dict = {}
         self._dummy = None
-        self._stats: dict = {}
+        self.stats: dict = {}  # this frame's statistics, reported by finish()
         self.passes = 0
+        self.storage = self.kind.storage(self) if self.kind.storage else None
 
     @classmethod
-    def unsupported_reason(cls, caps) -> str | None:
+    def unsupported_reason(cls, caps, options) -> str | None:
         """Peeling needs ordered per-pixel read-modify-write (framebuffer fetch or fragment shader interlock)."""
-        if cls.needs_ordering and ordering_backend("auto", caps) is None:
+        if options.needs_ordering and ordering_backend("auto", caps) is None:
             return (
                 "needs GL_EXT_shader_framebuffer_fetch or GL_ARB_fragment_shader_interlock to keep the "
                 "exact (depth, tie) test of each peeling pass in primitive order"
@@ -114,15 +151,16 @@ class PeelingMethod(TransparencyMethod):
             specs["acc_back"] = (4, "f4")
         if self.has_range:
             specs["range"] = (4, "u4")
+        specs.update((name, (components, "u4")) for name, components, _ in self.kind.slots)
         return specs
 
     def slot_names(self) -> list[str]:
         """Textures holding the ordered per-pixel state of the geometry passes, in slot order."""
-        return []
+        return [name for name, _, _ in self.kind.slots]
 
     def slot_clears(self) -> list[str]:
         """GLSL values the init step writes into each slot."""
-        return []
+        return [clear for _, _, clear in self.kind.slots]
 
     def _alloc(self, frame) -> None:
         size = (frame.width, frame.height)
@@ -166,12 +204,14 @@ class PeelingMethod(TransparencyMethod):
     # ------------------------------------------------------------------ frame
     def prepare(self, frame) -> None:
         """Allocate the per-pixel state and reset it (accumulations, bounds, slots)."""
+        if self.storage is not None:
+            self.storage.prepare(frame)
         self._shading = frame.shading_vars()
         self._alloc(frame)
         self._counter_buffer(frame)
         self.reset_counters()
         self.passes = 0
-        self._stats = {"peeled": 0, "composited": 0, "truncated": 0, "saturated_pixels": 0, "iterations": 0}
+        self.stats = {"peeled": 0, "composited": 0, "truncated": 0, "saturated_pixels": 0, "iterations": 0}
         self._warnings: list[str] = []
         self.step(frame, "init")
 
@@ -206,11 +246,16 @@ class PeelingMethod(TransparencyMethod):
         frame.ctx.memory_barrier()
 
     def step_vars(self) -> dict:
-        """Extra template variables of the compute steps."""
-        return {}
+        """Extra template variables of the compute steps (and of the geometry phases)."""
+        v = {"upper_opaque": True} if self.kind.upper_opaque else {}
+        if self.storage is not None:
+            v.update(self.storage.step_vars())
+        return v
 
     def _bind_step_storage(self, frame) -> None:
         """Bind method buffers the steps read (multi-layer pool)."""
+        if self.storage is not None:
+            self.storage.bind()
 
     def _image_format(self, name: str) -> str:
         comps, dtype = self.texture_specs()[name]
@@ -280,8 +325,9 @@ class PeelingMethod(TransparencyMethod):
         cap = int(self.settings.get("max_passes", 0))
         return cap > 0 and self.passes + needed > cap
 
-    def _truncate(self, left: int) -> None:
-        self._stats["truncated"] = left
+    def truncate(self, left: int) -> None:
+        """Record that the pass cap stopped peeling with `left` fragments not peeled, and warn."""
+        self.stats["truncated"] = left
         self.warn(
             f"{self.id}: max_passes={self.settings['max_passes']} stopped peeling with {left} fragments "
             "(at least one more layer) not peeled; the image misses them"
@@ -291,9 +337,13 @@ class PeelingMethod(TransparencyMethod):
         """Add a warning to this frame's stats."""
         self._warnings.append(text)
 
+    def render_transparent(self, frame) -> None:
+        """The method's loop of geometry passes and steps (PeelKind.render)."""
+        self.kind.render(self, frame)
+
     def finish(self, frame) -> bool:
         """Report passes, fragments, memory use and warnings."""
-        s = self._stats
+        s = self.stats
         frame.stats["geometry_passes"] = self.passes
         frame.stats["fragments"] = {"stored": s["peeled"] + s["composited"], **s}
         frame.stats["peeling"] = {"ordering": self.order, "iterations": s["iterations"]}
@@ -327,6 +377,8 @@ class PeelingMethod(TransparencyMethod):
 
     def phase_slots(self, phase: str) -> list[str]:
         """Slot textures a geometry phase reads and writes in order."""
+        if phase == "dual" and self.kind.bounds_in_order:
+            return ["bounds", *self.slot_names()]
         return self.slot_names() if phase in ORDERED_PHASES else []
 
     def extensions(self) -> str:
@@ -350,6 +402,8 @@ class PeelingMethod(TransparencyMethod):
             out[f"peel_{name}_used"] = nbytes
         if self._counters is not None:
             out["peel_counters"] = out["peel_counters_used"] = self._counters.buffer.size
+        if self.storage is not None:
+            out.update(self.storage.memory())
         return out
 
     def _release_textures(self) -> None:
@@ -372,99 +426,65 @@ class PeelingMethod(TransparencyMethod):
         if self._counters is not None:
             self._counters.release()
             self._counters = None
+        if self.storage is not None:
+            self.storage.release()
 
 
-class NearestPayloadPeel(PeelingMethod):
-    """A peel whose emulated depth buffer is the packed payload (8 words) of each pixel's nearest fragment."""
+def peel_layers(m: Peeling, frame) -> None:
+    """Geometry pass + step until a pass leaves nothing unpeeled; the cap reports what is left.
 
-    def texture_specs(self):
-        """Plus the payload of each pixel's nearest remaining fragment."""
-        return {**super().texture_specs(), "payload0": (4, "u4"), "payload1": (4, "u4")}
-
-    def slot_names(self):
-        """The payload is the pass's emulated depth buffer (word 0 depth, word 7 tie)."""
-        return ["payload0", "payload1"]
-
-    def slot_clears(self):
-        """Empty: key (+inf, max tie)."""
-        return [EMPTY_NEAR, EMPTY_NEAR_TIE]
-
-
-@register("method")
-class DepthPeeling(NearestPayloadPeel):
-    """Depth peeling (Everitt 2001): one layer per geometry pass, front to back, until nothing is left."""
-
-    id = "depth_peeling"
-    geometry_passes = None
-    geometry_passes_rule = "layers"
-    summary = "front-to-back depth peeling, one layer per geometry pass (exact (depth, tie) order)"
-    step_method = "nearest"
-
-    def render_transparent(self, frame) -> None:
-        """Peel until a pass finds every remaining fragment peeled (or the pass cap stops it)."""
-        self._peel_loop(frame, "nearest")
-
-    def _peel_loop(self, frame, phase: str) -> None:
-        """Geometry pass + step until a pass leaves nothing unpeeled; the cap reports what is left."""
-        s = self._stats
-        slots = self.phase_slots(phase)
-        left = 0
-        while True:
-            if self.cap_reached():
-                self._truncate(left)
-                break
-            self.reset_counters()
-            self.geometry_pass(frame, phase, slots)
-            self.step(frame, phase)
-            c = self.read_counters()
-            s["iterations"] += 1
-            s["peeled"] += c["peeled"]
-            s["saturated_pixels"] += c["saturated"]
-            left = self._left(c)
-            if left == 0:
-                break
-
-    def _left(self, c: dict) -> int:
-        """Fragments the pass saw that are still to peel."""
-        return c["in_range"] - c["peeled"]
+    Depth peeling peels the nearest layer per pass (phase "nearest"); dual depth peeling the
+    nearest and the farthest (phase "dual"), whose step counts what each pixel has left.
+    """
+    phase = m.step_method
+    s = m.stats
+    slots = m.phase_slots(phase)
+    left = 0
+    while True:
+        if m.cap_reached():
+            m.truncate(left)
+            break
+        m.reset_counters()
+        m.geometry_pass(frame, phase, slots)
+        m.step(frame, phase)
+        c = m.read_counters()
+        s["iterations"] += 1
+        s["peeled"] += c["peeled"]
+        s["saturated_pixels"] += c["saturated"]
+        # fragments the pass saw that are still to peel (dual: counted by the step from each
+        # pixel's in-range count; saturated pixels have nothing left)
+        left = c["left"] if phase == "dual" else c["in_range"] - c["peeled"]
+        if left == 0:
+            break
 
 
-@register("method")
-class DualDepthPeeling(DepthPeeling):
-    """Dual depth peeling (Bavoil & Myers 2008): nearest and farthest layer per pass, front under, back over."""
-
-    id = "dual_depth_peeling"
-    geometry_passes = None
-    geometry_passes_rule = "layers/2"
-    summary = "dual depth peeling: nearest and farthest remaining layer per geometry pass"
-    step_method = "dual"
-    has_back = True
-
-    def texture_specs(self):
-        """Plus the payloads of the nearest and the farthest remaining fragment."""
-        base = PeelingMethod.texture_specs(self)
-        return {**base, "front0": (4, "u4"), "front1": (4, "u4"), "back0": (4, "u4"), "back1": (4, "u4")}
-
-    def slot_names(self):
-        """Front payload, back payload."""
-        return ["front0", "front1", "back0", "back1"]
-
-    def slot_clears(self):
-        """Empty front: key +inf; empty back: key -1 (below every fragment)."""
-        return [EMPTY_NEAR, EMPTY_NEAR_TIE, EMPTY_FAR, ZERO]
-
-    def phase_slots(self, phase: str) -> list[str]:
-        """The dual pass also reads the bounds in order (slot 0): cheaper than a texture fetch on llvmpipe."""
-        return ["bounds", *self.slot_names()] if phase == "dual" else super().phase_slots(phase)
-
-    def step_vars(self) -> dict:
-        """The init step starts each pixel's upper bound at its opaque depth (the pass tests only the bounds)."""
-        return {"upper_opaque": True}
-
-    def _left(self, c: dict) -> int:
-        """Counted by the step from each pixel's in-range count; saturated pixels have nothing left."""
-        return c["left"]
-
-    def render_transparent(self, frame) -> None:
-        """Peel from both ends until they meet (or the pass cap stops it)."""
-        self._peel_loop(frame, "dual")
+register("method")(
+    MethodSpec(
+        "depth_peeling",  # Everitt 2001: one layer per geometry pass, front to back, until nothing is left
+        "front-to-back depth peeling, one layer per geometry pass (exact (depth, tie) order)",
+        Peeling,
+        PeelKind("nearest", peel_layers, NEAREST_PAYLOAD),
+        PEEL_SETTINGS,
+        geometry_passes=None,
+        geometry_passes_rule="layers",
+    )
+)
+register("method")(
+    MethodSpec(
+        "dual_depth_peeling",  # Bavoil & Myers 2008: nearest and farthest layer per pass, front under, back over
+        "dual depth peeling: nearest and farthest remaining layer per geometry pass",
+        Peeling,
+        PeelKind(
+            "dual",
+            peel_layers,
+            # front payload, back payload; an empty back is key -1 (below every fragment)
+            (("front0", 4, EMPTY_NEAR), ("front1", 4, EMPTY_NEAR_TIE), ("back0", 4, EMPTY_FAR), ("back1", 4, ZERO)),
+            has_back=True,
+            bounds_in_order=True,
+            upper_opaque=True,
+        ),
+        PEEL_SETTINGS,
+        geometry_passes=None,
+        geometry_passes_rule="layers/2",
+    )
+)

@@ -28,7 +28,8 @@ import numpy as np
 
 from ..pipeline.settings import Setting
 from ..registry import register
-from .peeling import EMPTY_NEAR, EMPTY_NEAR_TIE, ZERO, NearestPayloadPeel, PeelingMethod
+from .base import MethodSpec
+from .peeling import EMPTY_NEAR, EMPTY_NEAR_TIE, NEAREST_PAYLOAD, PEEL_SETTINGS, ZERO, Peeling, PeelKind
 
 # Emulated GL state of the counting passes (peeling/stencil8.glsl.j2 and coherent_stencil.glsl.j2).
 DEPTH_LESS, DEPTH_GREATER = 1, 2
@@ -94,153 +95,151 @@ def sorted_chain(intervals: list[tuple[float, float] | None]) -> list[int]:
     return out[::-1]
 
 
-@register("method")
-class HybridLayerPeeling(NearestPayloadPeel):
-    """Hybrid layer peeling: peel the unsorted draws, composite the sorted ones between peeled layers."""
-
-    id = "hybrid_layer_peeling"
-    geometry_passes = None
-    geometry_passes_rule = "2(unsorted+1)"
-    summary = "hybrid layer peeling: depth-peel unsorted draws, composite sorted draws between layers"
-    step_method = "nearest"
-    has_range = True
-    SETTINGS = {
-        **PeelingMethod.SETTINGS,
-        "sorted_set": Setting(
-            (str,),
-            "auto",
-            "which draws are composited as sorted geometry: 'auto' (the "
-            "longest front-to-back chain of planar draws) or 'none' (plain depth peeling)",
-            choices=("auto", "none"),
-        ),
-    }
-
-    def split(self, frame) -> tuple[list, list]:
-        """(sorted draws, unsorted draws) in submission order."""
-        draws = frame.transparent_draws
-        if self.settings["sorted_set"] == "none":
-            return [], draws
-        # vertex displacement moves geometry on the GPU: the CPU interval would not bound it
-        ivs = [
-            view_depth_interval(d, frame.view) if is_planar(d) and not d.material.methods.get("displacement") else None
-            for d in draws
-        ]
-        chain = set(sorted_chain(ivs))
-        return [d for i, d in enumerate(draws) if i in chain], [d for i, d in enumerate(draws) if i not in chain]
-
-    def render_transparent(self, frame) -> None:
-        """Algorithm 1 of the paper, on exact keys; stops once an iteration peels no unsorted layer."""
-        s = self._stats
-        sorted_draws, unsorted = self.split(frame)
-        s.update(sorted_draws=len(sorted_draws), unsorted_draws=len(unsorted))
-        peel = bool(unsorted)
-        left = 0
-        while True:
-            need = int(peel) + int(bool(sorted_draws))
-            if self.cap_reached(need):
-                self._truncate(left)
-                self.warn(f"{self.id}: sorted fragments behind the last peeled layer were not composited")
-                break
-            self.reset_counters()
-            if peel:
-                self.geometry_pass(frame, "nearest", self.slot_names(), draws=unsorted)
-            self.step(frame, "hybrid_range")
-            if sorted_draws:
-                self.composite_range_pass(frame, draws=sorted_draws)
-            self.step(frame, "nearest")
-            c = self.read_counters()
-            s["iterations"] += 1
-            s["peeled"] += c["peeled"]
-            s["composited"] += c["composited"]
-            s["saturated_pixels"] += c["saturated"]
-            left = c["in_range"] - c["peeled"]
-            if c["peeled"] == 0:
-                break  # no unsorted layer: the sorted draws were composited up to the opaque surface
-            peel = peel and left > 0  # no unsorted fragment left: one more compositing pass finishes
+def split_sorted(m: Peeling, frame) -> tuple[list, list]:
+    """(sorted draws, unsorted draws) in submission order, by the method's `sorted_set` setting."""
+    draws = frame.transparent_draws
+    if m.settings["sorted_set"] == "none":
+        return [], draws
+    # vertex displacement moves geometry on the GPU: the CPU interval would not bound it
+    ivs = [
+        view_depth_interval(d, frame.view) if is_planar(d) and not d.material.methods.get("displacement") else None
+        for d in draws
+    ]
+    chain = set(sorted_chain(ivs))
+    return [d for i, d in enumerate(draws) if i in chain], [d for i, d in enumerate(draws) if i not in chain]
 
 
-@register("method")
-class CoherentLayerPeeling(PeelingMethod):
-    """Coherent layer peeling: composite each pixel's correctly ordered run found by stencil counting."""
+def peel_hybrid(m: Peeling, frame) -> None:
+    """Algorithm 1 of the paper, on exact keys: peel the unsorted draws, composite the sorted ones
+    between peeled layers; stops once an iteration peels no unsorted layer."""
+    s = m.stats
+    sorted_draws, unsorted = split_sorted(m, frame)
+    s.update(sorted_draws=len(sorted_draws), unsorted_draws=len(unsorted))
+    peel = bool(unsorted)
+    left = 0
+    while True:
+        need = int(peel) + int(bool(sorted_draws))
+        if m.cap_reached(need):
+            m.truncate(left)
+            m.warn(f"{m.id}: sorted fragments behind the last peeled layer were not composited")
+            break
+        m.reset_counters()
+        if peel:
+            m.geometry_pass(frame, "nearest", m.slot_names(), draws=unsorted)
+        m.step(frame, "hybrid_range")
+        if sorted_draws:
+            m.composite_range_pass(frame, draws=sorted_draws)
+        m.step(frame, "nearest")
+        c = m.read_counters()
+        s["iterations"] += 1
+        s["peeled"] += c["peeled"]
+        s["composited"] += c["composited"]
+        s["saturated_pixels"] += c["saturated"]
+        left = c["in_range"] - c["peeled"]
+        if c["peeled"] == 0:
+            break  # no unsorted layer: the sorted draws were composited up to the opaque surface
+        peel = peel and left > 0  # no unsorted fragment left: one more compositing pass finishes
 
-    id = "coherent_layer_peeling"
-    geometry_passes = None
-    geometry_passes_rule = "5/iteration"
-    summary = "coherent layer peeling: stencil-counted in-order runs composited per pass (8-bit stencil)"
-    step_method = "coherent"
-    has_range = True
 
-    def texture_specs(self):
-        """Plus the emulated depth (key) and 8-bit stencil, and the upper surface's payload."""
-        return {
-            **super().texture_specs(),
-            "depth": (4, "u4"),
-            "stencil": (1, "u4"),
-            "payload0": (4, "u4"),
-            "payload1": (4, "u4"),
-        }
+def _counting_pass(m: Peeling, frame, n: int) -> None:
+    """Counting pass n (1-4) with the paper's depth/stencil state, then its step."""
+    depth, sfunc, ref, (sfail, zfail, zpass), capture = COUNTING_PASSES[n]
+    m.geometry_pass(
+        frame,
+        "stencil",
+        m.slot_names(),
+        uniforms={
+            "gua_cl_pass": n,
+            "gua_cl_depth_func": depth,
+            "gua_cl_stencil_func": sfunc,
+            "gua_cl_stencil_ref": ref,
+            "gua_cl_op_sfail": sfail,
+            "gua_cl_op_zfail": zfail,
+            "gua_cl_op_zpass": zpass,
+            "gua_cl_capture": capture,
+        },
+    )
+    m.step(frame, f"coherent_after_{n}")
 
-    def slot_names(self):
-        """State the counting passes read and write in primitive order."""
-        return ["depth", "stencil", "payload0", "payload1"]
 
-    def slot_clears(self):
-        """Depth cleared to far, stencil 0, no payload."""
-        return ["uvec4(GUA_INF, GUA_TIE_MAX, 0u, 0u)", ZERO, EMPTY_NEAR, EMPTY_NEAR_TIE]
-
-    def _counting_pass(self, frame, n: int) -> None:
-        """Counting pass n (1-4) with the paper's depth/stencil state, then its step."""
-        depth, sfunc, ref, (sfail, zfail, zpass), capture = COUNTING_PASSES[n]
-        self.geometry_pass(
-            frame,
-            "stencil",
-            self.slot_names(),
-            uniforms={
-                "gua_cl_pass": n,
-                "gua_cl_depth_func": depth,
-                "gua_cl_stencil_func": sfunc,
-                "gua_cl_stencil_ref": ref,
-                "gua_cl_op_sfail": sfail,
-                "gua_cl_op_zfail": zfail,
-                "gua_cl_op_zpass": zpass,
-                "gua_cl_capture": capture,
-            },
+def peel_coherent(m: Peeling, frame) -> None:
+    """Iterations of passes 1-5 until nothing is left in front of the opaque surfaces."""
+    s = m.stats
+    s.update(stencil_overflow_pixels=0)
+    left = 0
+    while True:
+        if m.cap_reached(1):
+            m.truncate(left)
+            break
+        m.reset_counters()
+        _counting_pass(m, frame, 1)
+        c = m.read_counters()
+        if c["in_range"] == 0:
+            break  # nothing left to peel anywhere
+        if m.cap_reached(PASSES_PER_ITERATION - 1):
+            m.truncate(c["in_range"])
+            break
+        for n in (2, 3, 4):
+            _counting_pass(m, frame, n)
+        m.composite_range_pass(frame)
+        m.step(frame, "coherent_after_5")
+        c = m.read_counters()
+        s["iterations"] += 1
+        s["peeled"] += c["peeled"]
+        s["composited"] += c["composited"]
+        s["saturated_pixels"] += c["saturated"]
+        s["stencil_overflow_pixels"] += c["overflow"]
+        left = c["in_range"] - c["composited"] - c["peeled"]
+        if left == 0:
+            break
+    if s["stencil_overflow_pixels"]:
+        m.warn(
+            f"{m.id}: 8-bit stencil overflow: more than 255 out-of-order surfaces in front of the "
+            f"nearest one ({s['stencil_overflow_pixels']} pixel-iterations); those pixels peeled one "
+            "layer per iteration instead (exact, more passes)"
         )
-        self.step(frame, f"coherent_after_{n}")
 
-    def render_transparent(self, frame) -> None:
-        """Iterations of passes 1-5 until nothing is left in front of the opaque surfaces."""
-        s = self._stats
-        s.update(stencil_overflow_pixels=0)
-        left = 0
-        while True:
-            if self.cap_reached(1):
-                self._truncate(left)
-                break
-            self.reset_counters()
-            self._counting_pass(frame, 1)
-            c = self.read_counters()
-            if c["in_range"] == 0:
-                break  # nothing left to peel anywhere
-            if self.cap_reached(PASSES_PER_ITERATION - 1):
-                self._truncate(c["in_range"])
-                break
-            for n in (2, 3, 4):
-                self._counting_pass(frame, n)
-            self.composite_range_pass(frame)
-            self.step(frame, "coherent_after_5")
-            c = self.read_counters()
-            s["iterations"] += 1
-            s["peeled"] += c["peeled"]
-            s["composited"] += c["composited"]
-            s["saturated_pixels"] += c["saturated"]
-            s["stencil_overflow_pixels"] += c["overflow"]
-            left = c["in_range"] - c["composited"] - c["peeled"]
-            if left == 0:
-                break
-        if s["stencil_overflow_pixels"]:
-            self.warn(
-                f"{self.id}: 8-bit stencil overflow: more than 255 out-of-order surfaces in front of the "
-                f"nearest one ({s['stencil_overflow_pixels']} pixel-iterations); those pixels peeled one "
-                "layer per iteration instead (exact, more passes)"
-            )
+
+register("method")(
+    MethodSpec(
+        "hybrid_layer_peeling",
+        "hybrid layer peeling: depth-peel unsorted draws, composite sorted draws between layers",
+        Peeling,
+        PeelKind("nearest", peel_hybrid, NEAREST_PAYLOAD, has_range=True),
+        {
+            **PEEL_SETTINGS,
+            "sorted_set": Setting(
+                (str,),
+                "auto",
+                "which draws are composited as sorted geometry: 'auto' (the "
+                "longest front-to-back chain of planar draws) or 'none' (plain depth peeling)",
+                choices=("auto", "none"),
+            ),
+        },
+        geometry_passes=None,
+        geometry_passes_rule="2(unsorted+1)",
+    )
+)
+register("method")(
+    MethodSpec(
+        "coherent_layer_peeling",
+        "coherent layer peeling: stencil-counted in-order runs composited per pass (8-bit stencil)",
+        Peeling,
+        PeelKind(
+            "coherent",
+            peel_coherent,
+            # the emulated depth (key, cleared to far) and 8-bit stencil (0) the counting passes read
+            # and write in primitive order, and the upper surface's payload (none)
+            (
+                ("depth", 4, "uvec4(GUA_INF, GUA_TIE_MAX, 0u, 0u)"),
+                ("stencil", 1, ZERO),
+                ("payload0", 4, EMPTY_NEAR),
+                ("payload1", 4, EMPTY_NEAR_TIE),
+            ),
+            has_range=True,
+        ),
+        PEEL_SETTINGS,
+        geometry_passes=None,
+        geometry_passes_rule="5/iteration",
+    )
+)

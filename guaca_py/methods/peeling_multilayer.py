@@ -17,69 +17,43 @@ pool_mb 'auto' the pool then grows to the pass's need, so the next pass cannot o
 from __future__ import annotations
 
 from ..limits import require_bytes
-from ..pipeline.settings import Setting, positive
+from ..pipeline.settings import Setting, auto_or_positive_mb, positive
 from ..registry import register
-from .peeling import PeelingMethod
+from .base import MethodSpec
+from .peeling import PEEL_SETTINGS, Peeling, PeelKind
 
 NODE_BYTES = 32  # 8 payload words
 INF_BITS = 0x7F800000  # +inf: "nothing dropped" in the per-pixel dropped-depth words
-
-
-def _pool(v) -> str | None:
-    if v == "auto" or (isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0):
-        return None
-    return f"must be 'auto' or a positive number of MB, got {v!r}"
 
 
 def _layers(v) -> str | None:
     return None if 1 <= v <= 32 else f"must be in 1..32, got {v}"
 
 
-@register("method")
-class MultiLayerDepthPeeling(PeelingMethod):
-    """M layers per geometry pass from an atomic per-pixel fragment sort; repeats until nothing is left."""
+class NodePool:
+    """Multi-layer peeling's storage beside the peeling textures: M slots per pixel, the node pool
+    they point into and each pixel's nearest dropped depth."""
 
-    id = "multilayer_depth_peeling"
-    geometry_passes = None
-    geometry_passes_rule = "layers/M"
-    summary = "multi-layer depth peeling via fragment sort: M nearest layers per pass (atomic slot chain)"
-    step_method = "multilayer"
-    needs_ordering = False
-    SETTINGS = {
-        **PeelingMethod.SETTINGS,
-        "layers_per_pass": Setting((int,), 4, "M: layers kept per pixel and pass", check=_layers),
-        "pool_mb": Setting(
-            (str, int, float), "auto", "node pool in MB, or 'auto' (grows to a pass's need)", check=_pool
-        ),
-        "max_pool_mb": Setting((int, float), 512, "largest pool 'auto' may grow to", check=positive),
-        "max_steps": Setting(
-            (int,), 1024, "bound on swap attempts per insertion (guards against livelock)", check=positive
-        ),
-    }
-
-    def __init__(self, settings, caps):
-        super().__init__(settings, caps)
-        self.layers = int(settings["layers_per_pass"])
+    def __init__(self, method: Peeling):
+        self.method = method
+        self.caps, self.settings = method.caps, method.settings
+        self.layers = int(self.settings["layers_per_pass"])
         self.capacity = 0
         self._slots = self._nodes = self._dropped = None
         self._pixels = 0
-        self._used_nodes = 0
+        self.used_nodes = 0  # most nodes one pass of this frame used
 
     def step_vars(self) -> dict:
         """M is compiled into the insertion and the step."""
         return {"ml_layers": self.layers}
 
-    def phase_slots(self, phase):
-        """No ordered per-pixel state: the slots live in a buffer updated with atomics."""
-        return []
-
-    # ------------------------------------------------------------------ storage
-    def _pool_nodes(self, mb: float) -> int:
+    def pool_nodes(self, mb: float) -> int:
         """Nodes in `mb` megabytes, within the device's storage rule (guaca_py/limits.py)."""
         cap = self.caps.limits.elements(NODE_BYTES) if self.caps.limits else 2**31 // NODE_BYTES
         return max(2, min(int(mb * 1024 * 1024) // NODE_BYTES, cap, 2**32 - 1))
 
-    def _alloc_pool(self, frame, capacity: int) -> None:
+    def alloc(self, frame, capacity: int) -> None:
+        """Per-pixel slots and dropped depths for the frame size, and a pool of `capacity` nodes."""
         ctx = frame.ctx
         pixels = frame.pixel_count
         if self._slots is None or self._pixels != pixels:
@@ -106,102 +80,132 @@ class MultiLayerDepthPeeling(PeelingMethod):
         """Per-pixel state and the node pool (one node per pixel and layer to start with)."""
         pool = self.settings["pool_mb"]
         if pool == "auto":
-            start = min(max(1024, frame.pixel_count * self.layers + 1), self._pool_nodes(self.settings["max_pool_mb"]))
+            start = min(max(1024, frame.pixel_count * self.layers + 1), self.pool_nodes(self.settings["max_pool_mb"]))
             cap = self.capacity if self._pixels == frame.pixel_count and self.capacity else start
-            if self._used_nodes and self._used_nodes + 1 < cap // 4:
+            if self.used_nodes and self.used_nodes + 1 < cap // 4:
                 # the last frame used under a quarter: hold what the scene needs (a deeper frame
                 # grows the pool again between its passes, no frame is lost)
-                cap = max(1024, int(self._used_nodes * 1.15) + 2)
+                cap = max(1024, int(self.used_nodes * 1.15) + 2)
         else:
-            cap = self._pool_nodes(pool)
-        self._alloc_pool(frame, cap)
-        self._used_nodes = 0
-        super().prepare(frame)
+            cap = self.pool_nodes(pool)
+        self.alloc(frame, cap)
+        self.used_nodes = 0
 
-    def _bind_step_storage(self, frame) -> None:
+    def bind(self) -> None:
+        """Slots, pool and dropped depths on the storage bindings the insertion and the steps read."""
         self._slots.bind_to_storage_buffer(0)
         self._nodes.bind_to_storage_buffer(1)
         self._dropped.bind_to_storage_buffer(5)
 
-    # ------------------------------------------------------------------ passes
-    def render_transparent(self, frame) -> None:
-        """Passes of M layers until one leaves nothing unpeeled (or the cap / a full fixed pool stops it)."""
-        s = self._stats
-        s.update(pool_overflow=0, pool_grown=0, rejected=0, guard_abandoned=0)
-        left = stalled = 0
-        max_nodes = self._pool_nodes(self.settings["max_pool_mb"])
-        while True:
-            if self.cap_reached():
-                self._truncate(left)
-                break
-            self.reset_counters(alloc=1)  # node 0 is the null handle
-            self._bind_step_storage(frame)
-            # a pool that can no longer grow cuts each pass at the nearest depth it dropped there
-            can_grow = self.settings["pool_mb"] == "auto" and self.capacity < max_nodes
-            self.geometry_pass(
-                frame,
-                "multilayer",
-                [],
-                uniforms={
-                    "gua_ml_capacity": self.capacity,
-                    "gua_ml_max_steps": int(self.settings["max_steps"]),
-                    "gua_ml_cut": not can_grow,
-                },
-            )
-            self.step(frame, "multilayer")
-            c = self.read_counters()
-            s["iterations"] += 1
-            s["peeled"] += c["peeled"]
-            s["saturated_pixels"] += c["saturated"]
-            s["pool_overflow"] += c["overflow"]
-            s["rejected"] += c["rejected"]
-            s["guard_abandoned"] += c["guard"]
-            requested = c["alloc"] - 1
-            self._used_nodes = max(self._used_nodes, min(requested, self.capacity - 1))
-            left = c["in_range"] - c["peeled"]
-            if left == 0:
-                break
-            stalled = stalled + 1 if c["peeled"] == 0 else 0
-            if c["overflow"] and can_grow:
-                # Grow so that the next pass cannot overflow: it allocates at most one node per fragment it sees.
-                want = max(requested, c["in_range"]) + 2
-                self._alloc_pool(frame, min(max_nodes, int(want * 1.1)))
-                s["pool_grown"] += 1
-            elif stalled >= 3:
-                # three passes without a peeled fragment: stop (counted) rather than loop for ever
-                s["truncated"] = left
-                why = (
-                    f"the node pool ({self.capacity - 1} nodes) is too small to make progress "
-                    "(raise transparency.pool_mb or use 'auto')"
-                    if c["overflow"]
-                    else f"every insertion hit max_steps ({self.settings['max_steps']}; raise it)"
-                )
-                self.warn(f"{self.id}: {why}; {left} fragments not peeled")
-                break
-        if s["pool_overflow"] and self.settings["pool_mb"] != "auto":
-            self.warn(
-                f"{self.id}: node pool overflowed ({s['pool_overflow']} nodes lacking, "
-                f"{self.capacity - 1} nodes); those layers were peeled in later passes"
-            )
-        if s["guard_abandoned"]:
-            self.warn(f"{self.id}: {s['guard_abandoned']} insertions hit max_steps; peeled again in later passes")
-
     def memory(self) -> dict:
-        """Per-pixel textures plus slots, node pool (allocated and most used in one pass) and dropped depths."""
-        out = super().memory()
-        if self._slots is not None:
-            out["peel_ml_slots"] = out["peel_ml_slots_used"] = self._slots.size
-            out["peel_ml_dropped"] = out["peel_ml_dropped_used"] = self._dropped.size
-            out["peel_ml_pool"] = self.capacity * NODE_BYTES
-            out["peel_ml_pool_used"] = (self._used_nodes + 1) * NODE_BYTES
-        return out
+        """Slots, node pool (allocated and most used in one pass) and dropped depths, in bytes."""
+        if self._slots is None:
+            return {}
+        return {
+            "peel_ml_slots": self._slots.size,
+            "peel_ml_slots_used": self._slots.size,
+            "peel_ml_dropped": self._dropped.size,
+            "peel_ml_dropped_used": self._dropped.size,
+            "peel_ml_pool": self.capacity * NODE_BYTES,
+            "peel_ml_pool_used": (self.used_nodes + 1) * NODE_BYTES,
+        }
 
     def release(self) -> None:
-        """Free the pool and per-pixel buffers too."""
-        super().release()
+        """Free the pool and per-pixel buffers."""
         for b in (self._slots, self._nodes, self._dropped):
             if b is not None:
                 b.release()
         self._slots = self._nodes = self._dropped = None
         self._pixels = 0
         self.capacity = 0
+
+
+def peel_multilayer(m: Peeling, frame) -> None:
+    """Passes of M layers until one leaves nothing unpeeled (or the cap / a full fixed pool stops it)."""
+    pool: NodePool = m.storage
+    s = m.stats
+    s.update(pool_overflow=0, pool_grown=0, rejected=0, guard_abandoned=0)
+    left = stalled = 0
+    max_nodes = pool.pool_nodes(m.settings["max_pool_mb"])
+    while True:
+        if m.cap_reached():
+            m.truncate(left)
+            break
+        m.reset_counters(alloc=1)  # node 0 is the null handle
+        pool.bind()
+        # a pool that can no longer grow cuts each pass at the nearest depth it dropped there
+        can_grow = m.settings["pool_mb"] == "auto" and pool.capacity < max_nodes
+        m.geometry_pass(
+            frame,
+            "multilayer",
+            [],
+            uniforms={
+                "gua_ml_capacity": pool.capacity,
+                "gua_ml_max_steps": int(m.settings["max_steps"]),
+                "gua_ml_cut": not can_grow,
+            },
+        )
+        m.step(frame, "multilayer")
+        c = m.read_counters()
+        s["iterations"] += 1
+        s["peeled"] += c["peeled"]
+        s["saturated_pixels"] += c["saturated"]
+        s["pool_overflow"] += c["overflow"]
+        s["rejected"] += c["rejected"]
+        s["guard_abandoned"] += c["guard"]
+        requested = c["alloc"] - 1
+        pool.used_nodes = max(pool.used_nodes, min(requested, pool.capacity - 1))
+        left = c["in_range"] - c["peeled"]
+        if left == 0:
+            break
+        stalled = stalled + 1 if c["peeled"] == 0 else 0
+        if c["overflow"] and can_grow:
+            # Grow so that the next pass cannot overflow: it allocates at most one node per fragment it sees.
+            want = max(requested, c["in_range"]) + 2
+            pool.alloc(frame, min(max_nodes, int(want * 1.1)))
+            s["pool_grown"] += 1
+        elif stalled >= 3:
+            # three passes without a peeled fragment: stop (counted) rather than loop for ever
+            s["truncated"] = left
+            why = (
+                f"the node pool ({pool.capacity - 1} nodes) is too small to make progress "
+                "(raise transparency.pool_mb or use 'auto')"
+                if c["overflow"]
+                else f"every insertion hit max_steps ({m.settings['max_steps']}; raise it)"
+            )
+            m.warn(f"{m.id}: {why}; {left} fragments not peeled")
+            break
+    if s["pool_overflow"] and m.settings["pool_mb"] != "auto":
+        m.warn(
+            f"{m.id}: node pool overflowed ({s['pool_overflow']} nodes lacking, "
+            f"{pool.capacity - 1} nodes); those layers were peeled in later passes"
+        )
+    if s["guard_abandoned"]:
+        m.warn(f"{m.id}: {s['guard_abandoned']} insertions hit max_steps; peeled again in later passes")
+
+
+register("method")(
+    MethodSpec(
+        "multilayer_depth_peeling",
+        "multi-layer depth peeling via fragment sort: M nearest layers per pass (atomic slot chain)",
+        Peeling,
+        # no ordered per-pixel state: the slots live in a buffer updated with atomics
+        PeelKind("multilayer", peel_multilayer, needs_ordering=False, storage=NodePool),
+        {
+            **PEEL_SETTINGS,
+            "layers_per_pass": Setting((int,), 4, "M: layers kept per pixel and pass", check=_layers),
+            "pool_mb": Setting(
+                (str, int, float),
+                "auto",
+                "node pool in MB, or 'auto' (grows to a pass's need)",
+                check=auto_or_positive_mb,
+            ),
+            "max_pool_mb": Setting((int, float), 512, "largest pool 'auto' may grow to", check=positive),
+            "max_steps": Setting(
+                (int,), 1024, "bound on swap attempts per insertion (guards against livelock)", check=positive
+            ),
+        },
+        geometry_passes=None,
+        geometry_passes_rule="layers/M",
+    )
+)

@@ -45,11 +45,11 @@ def legend_rows(height: int) -> int:
 
 def depth_complexity_unsupported(method) -> str | None:
     """Why the depth-complexity view cannot read `method`'s storage, or None when it can."""
-    from ..methods.presort_lf import PreSortLF
+    from ..methods.abuffer import ABuffer
 
     if method is None:
         return None
-    if not isinstance(method, PreSortLF) or method.resolve_template() not in _LIST_LAYOUTS:
+    if not isinstance(method, ABuffer) or method.resolve_template() not in _LIST_LAYOUTS:
         return (
             f"method '{method.id}' keeps no per-pixel A-buffer lists to count (supported: the "
             f"presort_lf family, post_sort, post_merge16)"

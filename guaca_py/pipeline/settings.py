@@ -55,6 +55,13 @@ def unit_interval(v) -> str | None:
     return None if 0 < v <= 1 else f"must be in (0, 1], got {v}"
 
 
+def auto_or_positive_mb(v) -> str | None:
+    """Check: 'auto' or a positive number of MB (storage budgets)."""
+    if v == "auto" or (isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0):
+        return None
+    return f"must be 'auto' or a positive number of MB, got {v!r}"
+
+
 NUMBER = (int, float)
 
 
