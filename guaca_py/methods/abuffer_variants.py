@@ -40,7 +40,7 @@ class ABufferVariant(PreSortLF):
         abandoned = self.read_counters()["lock_abandoned"]
         frame.stats["fragments"]["lock_abandoned"] = abandoned
         if abandoned:
-            frame.stats.setdefault("warnings", []).append(
+            frame.stats.warn(
                 f"{abandoned} fragments gave up waiting for their pixel's lock (max_spin) and were dropped"
             )
         return again
@@ -180,7 +180,7 @@ class _PostBase(ABufferVariant):
         fr = frame.stats.setdefault("fragments", {})
         fr["truncated"], fr["truncated_pixels"] = c["truncated"], c["truncated_pixels"]
         if c["truncated"]:
-            frame.stats.setdefault("warnings", []).append(self._truncation_warning(c))
+            frame.stats.warn(self._truncation_warning(c))
 
     def _truncation_warning(self, c: dict) -> str:
         return (

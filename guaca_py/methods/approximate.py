@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 
+import moderngl
 import numpy as np
 
 from ..gpu_timer import SamplesQuery
@@ -22,7 +23,7 @@ _FILL_GROUPS_MAX = 4096
 
 def fill_uint_buffer(frame, buffer, count: int, value: int) -> None:
     """Set the first `count` uint words of `buffer` to `value` on the GPU."""
-    prog = frame.renderer.shaders.compute("approx/fill.comp.j2")
+    prog = frame.programs.compute("approx/fill.comp.j2")
     buffer.bind_to_storage_buffer(0)
     prog["gua_fill_count"] = count
     prog["gua_fill_value"] = value
@@ -69,7 +70,7 @@ class ForwardBlendMethod(TransparencyMethod):
         return [(4, self.accum_dtype, (0.0, 0.0, 0.0, 0.0))]
 
     def _alloc(self, frame) -> None:
-        depth = frame.resources["gbuffer"]["depth"]
+        depth = frame.resources["gbuffer"].depth
         key = (frame.width, frame.height, depth.glo)
         if key == self._key:
             return
@@ -102,7 +103,7 @@ class ForwardBlendMethod(TransparencyMethod):
 
     def _blended_pass(self, frame, uniforms: dict | None = None) -> None:
         """Draw the transparent list once into the accumulation targets, counting fragments as 'blended'."""
-        mgl = frame.renderer.moderngl
+        mgl = moderngl
         ctx = frame.ctx
         self._fbo.depth_mask = False
         self._fbo.use()

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 
+import moderngl
 import numpy as np
 
 from ..gpu_counters import CounterBlock, StagedReader
@@ -62,8 +63,8 @@ class _CountedStorage(TransparencyMethod):
     # ------------------------------------------------------------------ helpers
     def _tools(self, frame) -> None:
         if self._scan is None:
-            self._scan = PrefixSum(frame.ctx, frame.renderer.shaders)
-            self._fill = GpuFill(frame.renderer.shaders)
+            self._scan = PrefixSum(frame.ctx, frame.programs)
+            self._fill = GpuFill(frame.programs)
             self._reader = StagedReader(frame.ctx)
 
     def _buffer(self, ctx, name: str, nbytes: int):
@@ -101,10 +102,10 @@ class _CountedStorage(TransparencyMethod):
 
     def _state_begin(self, frame) -> None:
         """Transparent draws test against the opaque depth without writing it."""
-        mgl = frame.renderer.moderngl
+        mgl = moderngl
         g = frame.resources["gbuffer"]
-        g["depth_only"].use()
-        g["depth_only"].depth_mask = False
+        g.depth_only.use()
+        g.depth_only.depth_mask = False
         frame.ctx.enable(mgl.DEPTH_TEST)
         frame.ctx.depth_func = "<"
 
@@ -125,7 +126,7 @@ class _CountedStorage(TransparencyMethod):
         raise NotImplementedError
 
     def _warn(self, frame, text: str) -> None:
-        frame.stats.setdefault("warnings", []).append(text)
+        frame.stats.warn(text)
 
     # ------------------------------------------------------------------ shaders
     _PHASE_TEMPLATES = {
@@ -222,7 +223,7 @@ class DynamicFragmentBuffer(_CountedStorage):
         if total:
             self._draw(frame, "store", {"gua_cs_capacity": capacity})
         self.phase = "resolve"
-        frame.resources["gbuffer"]["fbo"].depth_mask = True
+        frame.resources["gbuffer"].fbo.depth_mask = True
 
     def finish(self, frame) -> bool:
         """Read the counters into frame.stats (exact allocation: never asks for a re-render)."""
@@ -296,7 +297,7 @@ class SBuffer(DynamicFragmentBuffer):
         s, n = int(self.settings["counters"]), frame.pixel_count
         self._fill.run(self._bufs["groups"], s, 0)
         frame.ctx.memory_barrier()
-        prog = frame.renderer.shaders.compute("counted/sbuffer_address.comp.j2", counters=s)
+        prog = frame.programs.compute("counted/sbuffer_address.comp.j2", counters=s)
         self._bufs["pixels"].bind_to_storage_buffer(0)
         self._bufs["counts"].bind_to_storage_buffer(2)
         self._bufs["groups"].bind_to_storage_buffer(5)
@@ -393,7 +394,7 @@ class PagedLinkedLists(_CountedStorage):
         self._state_begin(frame)
         self._draw(frame, "insert", {"gua_cs_capacity": self.capacity})
         self.phase = "resolve"
-        frame.resources["gbuffer"]["fbo"].depth_mask = True
+        frame.resources["gbuffer"].fbo.depth_mask = True
 
     def finish(self, frame) -> bool:
         """Read counters; with an 'auto' budget grow the pool after overflow and ask for a re-render."""

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import math
 
+import moderngl
+
 from ..errors import UnsupportedMethodError
 from ..gpu_counters import CounterBlock
 from ..pipeline.settings import Setting
@@ -83,7 +85,7 @@ class PeelingMethod(TransparencyMethod):
         if self.needs_ordering and self.order is None:
             raise UnsupportedMethodError(
                 f"method '{self.id}' with ordering '{settings.get('ordering')}' cannot run "
-                f"on {caps.renderer}: the device lacks that extension"
+                f"on {caps.gl_renderer}: the device lacks that extension"
             )
         self._phase = "composite"
         self._shading: dict = {}
@@ -128,7 +130,7 @@ class PeelingMethod(TransparencyMethod):
         if self._size == size and self._tex:
             return
         self._release_textures()
-        mgl = frame.renderer.moderngl
+        mgl = moderngl
         for name, (comps, dtype) in self.texture_specs().items():
             t = frame.ctx.texture(size, comps, dtype=dtype)
             t.filter = (mgl.NEAREST, mgl.NEAREST)
@@ -177,7 +179,7 @@ class PeelingMethod(TransparencyMethod):
     def step(self, frame, name: str) -> None:
         """Run one compute step of peeling/step.comp.j2 over every pixel."""
         slots = self.slot_names()
-        prog = frame.renderer.shaders.compute(
+        prog = frame.programs.compute(
             "peeling/step.comp.j2",
             method=self.step_method,
             step=name,
@@ -192,7 +194,7 @@ class PeelingMethod(TransparencyMethod):
         frame.bind_lights(prog)
         set_uniform(prog, "gua_threshold", self.composite_threshold())
         if set_uniform(prog, "gua_peel_opaque", UNIT_OPAQUE):
-            frame.resources["gbuffer"]["depth"].use(location=UNIT_OPAQUE)
+            frame.resources["gbuffer"].depth.use(location=UNIT_OPAQUE)
         self._bind_step_storage(frame)
         units = {"acc_front": 0, "acc_back": 1, "bounds": 2, "range": 3}
         for name_, unit in units.items():
@@ -219,7 +221,7 @@ class PeelingMethod(TransparencyMethod):
         g = frame.resources["gbuffer"]
         if "bounds" not in self.phase_slots(self._phase):  # never sample a texture the pass renders to
             self._tex["bounds"].use(location=UNIT_BOUNDS)
-        g["depth"].use(location=UNIT_OPAQUE)
+        g.depth.use(location=UNIT_OPAQUE)
         if "range" in self._tex:
             self._tex["range"].use(location=UNIT_RANGE)
         self._counters.bind(4)
@@ -229,7 +231,7 @@ class PeelingMethod(TransparencyMethod):
         self, frame, phase: str, slots: list[str], draws=None, uniforms: dict | None = None, per_program=None
     ) -> None:
         """One pass over the transparent draws (or `draws`) that updates the slots in primitive order."""
-        mgl = frame.renderer.moderngl
+        mgl = moderngl
         ctx = frame.ctx
         if self.order == "fetch" and slots:
             self._fbo(frame, phase, slots).use()
@@ -257,7 +259,7 @@ class PeelingMethod(TransparencyMethod):
 
     def composite_range_pass(self, frame, draws=None) -> None:
         """Shade the fragments inside each pixel's range in place and blend them under the front accumulation."""
-        mgl = frame.renderer.moderngl
+        mgl = moderngl
         ctx = frame.ctx
         self._fbo(frame, "composite_range", ["acc_front"]).use()
         ctx.disable(mgl.DEPTH_TEST | mgl.CULL_FACE)

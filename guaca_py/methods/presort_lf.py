@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 import os
 
+import moderngl
+
 from ..gpu_counters import CounterBlock
 from ..limits import pool_node_limit
 from ..pipeline.settings import Setting, non_negative, positive
@@ -102,7 +104,7 @@ class PreSortLF(TransparencyMethod):
         self._alloc(frame.ctx, frame.pixel_count, cap, (frame.width, frame.height))
         self._counters.reset(alloc=1)  # node 0 is the null link
         self._counts = None
-        clear = frame.renderer.shaders.compute("abuffer/clear.comp.j2")
+        clear = frame.programs.compute("abuffer/clear.comp.j2")
         self._links.bind_to_storage_buffer(0)
         self._cull.bind_to_image(0, read=False, write=True)
         set_uniforms(
@@ -128,10 +130,10 @@ class PreSortLF(TransparencyMethod):
 
     def render_transparent(self, frame) -> None:
         """One geometry pass: every transparent fragment tries to insert itself."""
-        mgl = frame.renderer.moderngl
+        mgl = moderngl
         g = frame.resources["gbuffer"]
-        g["depth_only"].use()
-        g["depth_only"].depth_mask = False  # hardware test against opaque depth only
+        g.depth_only.use()
+        g.depth_only.depth_mask = False  # hardware test against opaque depth only
         frame.ctx.enable(mgl.DEPTH_TEST)
         frame.ctx.depth_func = "<"
         self._bind()
@@ -143,7 +145,7 @@ class PreSortLF(TransparencyMethod):
                 "gua_ab_threshold": self.threshold(),
             }
         )
-        g["fbo"].depth_mask = True
+        g.fbo.depth_mask = True
 
     def finish(self, frame) -> bool:
         """Read counters; with an 'auto' budget, grow the pool to the need and ask for a re-render.
@@ -173,12 +175,12 @@ class PreSortLF(TransparencyMethod):
         }
         self._last = {"used_nodes": used}
         if c["overflow"]:
-            frame.stats.setdefault("warnings", []).append(
+            frame.stats.warn(
                 f"A-buffer overflow{' in the previous frame' if late else ''}: {c['overflow']} fragments dropped "
                 f"(pool {capacity - 1} nodes, frame asked for {requested}); {self._overflow_hint()}"
             )
         if c["guard"]:
-            frame.stats.setdefault("warnings", []).append(f"{c['guard']} insertions hit max_steps and were dropped")
+            frame.stats.warn(f"{c['guard']} insertions hit max_steps and were dropped")
         auto = self.settings["budget_mb"] == "auto"
         grow = self.capacity < self.max_capacity(self._pixels)
         if c["overflow"] and auto and late:

@@ -13,6 +13,8 @@ the revealage prod(1 - alpha); the composite scales the estimated color by the e
 
 from __future__ import annotations
 
+import moderngl
+
 from ..limits import require_bytes
 from ..pipeline.settings import Setting
 from .approximate import ForwardBlendMethod, fill_uint_buffer
@@ -67,21 +69,21 @@ class StochasticTransparency(ForwardBlendMethod):
 
     def render_transparent(self, frame) -> None:
         """Pass 1 stochastic depth (depth test only), pass 2 shaded accumulation."""
-        mgl = frame.renderer.moderngl
+        mgl = moderngl
         ctx = frame.ctx
         uniforms = {"gua_stoch_seed": int(self.settings["seed"]) & 0xFFFFFFFF}
         g = frame.resources["gbuffer"]
         try:
             self._phase = "depth"
-            g["depth_only"].depth_mask = False
-            g["depth_only"].use()
+            g.depth_only.depth_mask = False
+            g.depth_only.use()
             ctx.enable(mgl.DEPTH_TEST)
             ctx.disable(mgl.BLEND)
             ctx.depth_func = "<"
             self._depth.bind_to_storage_buffer(0)
             with self.samples_query(ctx, "depth_pass"):  # reported beside 'blended' (finish)
                 frame.draw_transparent(uniforms)
-            g["depth_only"].depth_mask = True
+            g.depth_only.depth_mask = True
             ctx.memory_barrier()
             self._phase = "accum"
             self._depth.bind_to_storage_buffer(0)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .frame import mat_bytes
+from ..shaders import mat_bytes
 
 _NUMBERS = frozenset((float, int))
 

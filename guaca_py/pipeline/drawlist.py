@@ -9,7 +9,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..materials import MaterialDescription, MaterialRegistry
 from ..scene.graph import MeshData, Scene
-from ..shaders import set_uniform, uniform_names
+from ..shaders import mat_bytes, set_uniform, uniform_names
 
 
 @dataclass
@@ -28,8 +28,6 @@ class Draw:
 
     def write_transform(self, prog) -> None:
         """Write the model and normal matrices a program uses (the DrawCache's bytes when it made them)."""
-        from .frame import mat_bytes
-
         set_uniform(prog, "gua_model_matrix", self.model_bytes or mat_bytes(self.world))
         if "gua_normal_matrix" in uniform_names(prog):  # the inverse only where it is used
             set_uniform(prog, "gua_normal_matrix", self.normal_bytes or mat_bytes(np.linalg.inv(self.world).T))
