@@ -138,10 +138,10 @@ def main(argv=None) -> int:
     timer = "GPU timer queries" if caps.gpu_timers else "wall time"
     (args.out / "aa_merge.json").write_text(
         json.dumps(
-            {"command": command, "device": caps.renderer, "timer": timer, "scenes": records}, indent=1, default=str
+            {"command": command, "device": caps.gl_renderer, "timer": timer, "scenes": records}, indent=1, default=str
         )
     )
-    (args.out / "aa_merge.md").write_text(markdown(records, command, caps.renderer, timer))
+    (args.out / "aa_merge.md").write_text(markdown(records, command, caps.gl_renderer, timer))
     progress(f"wrote {args.out}/aa_merge.md, .json")
     ctx.release()
     return 0

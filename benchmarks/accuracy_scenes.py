@@ -416,7 +416,7 @@ def main(argv=None) -> int:
         spawn = multiprocessing.get_context("spawn")
         pool = ProcessPoolExecutor(args.flip_workers, mp_context=spawn) if args.flip_workers > 0 else None
         ctx, caps = create_context()
-        device = caps.renderer
+        device = caps.gl_renderer
         for path in scene_paths(args):
             rec = run_scene(ctx, caps, path, args, pool)
             rec.update(device=device, command=command)

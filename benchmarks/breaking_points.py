@@ -75,7 +75,7 @@ def run(out: Path, size: int, layer_counts: list[int]) -> dict:
         r.release()
     return {
         "meta": {
-            "device": caps.renderer,
+            "device": caps.gl_renderer,
             "size": size,
             "layers": layer_counts,
             "scene": "layered quads, shuffled, seed 5",

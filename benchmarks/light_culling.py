@@ -136,7 +136,7 @@ def run(out: Path, size: int, counts: list[int], frames: int, warmup: int, tile:
         r.release()
     at_1024 = next((r["ratio_off_on"] for r in rows if r["lights"] == 1024), None)
     result = {
-        "device": caps.renderer,
+        "device": caps.gl_renderer,
         "timer": rows[0]["on"]["timer"] if rows else None,
         "size": size,
         "tile_size": tile,

@@ -113,7 +113,7 @@ def main(argv=None) -> int:
         )
     post = [sum(v for k, v in r["pass_ms"].items() if k in ("tone_mapping", "fxaa")) for r in rows if "pass_ms" in r]
     meta = {
-        "device": caps.renderer,
+        "device": caps.gl_renderer,
         "size": args.size,
         "frames": args.frames,
         "warmup": args.warmup,

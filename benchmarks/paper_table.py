@@ -487,7 +487,7 @@ def main() -> None:
         return
     ctx, caps = create_context()
     out = {
-        "device": caps.renderer,
+        "device": caps.gl_renderer,
         "size": args.size,
         "command": "python3 benchmarks/paper_table.py " + " ".join(sys.argv[1:]),
         "capabilities": caps.as_dict(),

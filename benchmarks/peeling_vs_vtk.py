@@ -310,7 +310,7 @@ def main() -> None:
         row["median_wall_s"] = statistics.median(row["wall_s"])
         row["median_cpu_s"] = statistics.median(row["cpu_s"])
     meta = {
-        "device": caps.renderer,
+        "device": caps.gl_renderer,
         "cpus": os.cpu_count(),
         "machine": platform.processor() or platform.machine(),
         "vtk": vtk_version,

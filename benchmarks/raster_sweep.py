@@ -98,7 +98,7 @@ def main(argv=None) -> int:
     renderers = {"hardware": hardware, "compute": compute}
     caps = renderers["hardware"].caps
     rows = []
-    print(f"device: {caps.renderer}; {w}x{h}, method {args.method}, median of {args.frames} after {args.warmup}")
+    print(f"device: {caps.gl_renderer}; {w}x{h}, method {args.method}, median of {args.frames} after {args.warmup}")
     print(
         f"{'area px²':>9} {'measured':>9} {'triangles':>10} {'fragments':>11} "
         f"{'hw ms':>9} {'cs ms':>9} {'hw Gfrag/s':>11} {'cs Gfrag/s':>11} {'cs/hw':>6}"
@@ -139,7 +139,7 @@ def main(argv=None) -> int:
         for r in renderers.values():
             r.meshes.release()  # one mesh at a time on the GPU
     result = {
-        "device": caps.renderer,
+        "device": caps.gl_renderer,
         "timer": rows[0]["hardware"]["timer"] if rows else None,
         "size": [w, h],
         "method": args.method,

@@ -76,7 +76,7 @@ def main(argv=None) -> int:
         "target ms | target | compute speedup (frame / geometry) |"
     )
     lines += [
-        f"{hw.caps.renderer}, {args.size}², {args.method}, median of {args.frames} frames after {args.warmup}; "
+        f"{hw.caps.gl_renderer}, {args.size}², {args.method}, median of {args.frames} frames after {args.warmup}; "
         f"compute tile {args.tile}, boxes <= {args.small_area} px per thread, <= {args.medium_area} px per workgroup",
         "",
         head,
@@ -124,7 +124,7 @@ def main(argv=None) -> int:
     text = "\n".join(lines)
     print(text)
     (args.out / "raster_table.md").write_text(text + "\n")
-    (args.out / "raster_table.json").write_text(json.dumps({"device": hw.caps.renderer, "rows": rows}, indent=2))
+    (args.out / "raster_table.json").write_text(json.dumps({"device": hw.caps.gl_renderer, "rows": rows}, indent=2))
     cs.release()
     hw.release()
     return 0

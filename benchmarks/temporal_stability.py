@@ -230,7 +230,7 @@ def main(argv=None) -> int:
         ctx, caps = create_context()
         for path in args.scene:
             rec = run_scene(ctx, caps, path, args)
-            rec.update(device=caps.renderer, command=command)
+            rec.update(device=caps.gl_renderer, command=command)
             d = args.out / rec["scene"]
             d.mkdir(exist_ok=True)
             (d / "stability.json").write_text(json.dumps(rec, indent=1))

@@ -88,7 +88,6 @@ def sample_positions(ctx, samples: int, shaders) -> tuple[tuple[float, float], .
         tex = ctx.texture((1, 1), 4, dtype="f4", samples=samples)
         fbo = ctx.framebuffer(color_attachments=[tex])
         draw = shaders.program(
-            ("antialiasing", "sample_position"),
             {
                 "vertex_shader": ("antialiasing/sample_position.vert.j2", {}),
                 "fragment_shader": ("antialiasing/sample_position.frag.j2", {}),

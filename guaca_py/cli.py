@@ -128,7 +128,7 @@ def _cmd_info(args) -> int:
         )
         print(json.dumps(info, indent=2))
         return 0
-    print(f"device:    {caps.renderer}")
+    print(f"device:    {caps.gl_renderer}")
     print(f"vendor:    {caps.vendor}")
     print(f"OpenGL:    {caps.version}")
     for k in ("atomic_int64", "fragment_interlock", "conservative_raster", "gpu_timers"):

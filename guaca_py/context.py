@@ -18,7 +18,7 @@ _INSTALL_HINT = (
 class Capabilities:
     """What the device can do; drives which shader variants and methods are built."""
 
-    renderer: str
+    gl_renderer: str  # GL_RENDERER: the device's name
     vendor: str
     version: str
     atomic_int64: bool  # 64-bit atomics on SSBOs (NV_shader_atomic_int64 + ARB_gpu_shader_int64)
@@ -64,7 +64,7 @@ def detect_capabilities(ctx, disable: tuple[str, ...] = ()) -> Capabilities:
             raise DeviceError(f"unknown capability '{name}' (known: {', '.join(caps)})")
         caps[name] = False
     return Capabilities(
-        renderer=renderer,
+        gl_renderer=renderer,
         vendor=info.get("GL_VENDOR", "?"),
         version=info.get("GL_VERSION", "?"),
         software=software,

@@ -1,4 +1,4 @@
-"""The library's environment variables: two names, read here and nowhere else (docs/env.md).
+"""The library's environment variables: two names, read here and nowhere else (docs/architecture.md, Environment).
 
 * `GUACA_MAX_BUFFER_MB` lowers the storage cap per buffer (guaca_py/limits.py applies it).
 * `GUACA_RASTER_STAGES` (1 to enable) makes the compute rasterizer record each stage's GPU time.

@@ -10,13 +10,12 @@ from .errors import GuacaError
 class Presenter:
     """Copies the pipeline's final colour into a target with one full-screen triangle."""
 
-    def __init__(self, renderer):
-        self.renderer = renderer
+    def __init__(self, device):
+        self.device = device
 
     def program(self):
-        """The copy program (compiled once by the renderer's shader library)."""
-        return self.renderer.shaders.program(
-            ("present", "copy"),
+        """The copy program (compiled once by the program builder)."""
+        return self.device.programs.program(
             {
                 "vertex_shader": ("composite/fullscreen.vert.j2", {}),
                 "fragment_shader": ("present/copy.frag.j2", {}),
@@ -26,7 +25,7 @@ class Presenter:
 
     def draw(self, color, target, viewport: tuple[int, int, int, int] | None = None) -> None:
         """Draw texture `color` into `target` (a moderngl Framebuffer or Texture) over `viewport`."""
-        ctx = self.renderer.ctx
+        ctx = self.device.ctx
         own_fbo = None
         if isinstance(target, moderngl.Texture):
             own_fbo = ctx.framebuffer(color_attachments=[target])  # released below: no cache to leak
@@ -50,7 +49,7 @@ class Presenter:
             color.use(location=0)
             prog["gua_input"] = 0
             prog["gua_viewport"] = tuple(float(v) for v in vp)
-            self.renderer.fullscreen(prog)
+            self.device.fullscreen(prog)
             color.filter = prev_filter
             fbo.viewport = host_viewport
         finally:

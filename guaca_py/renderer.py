@@ -17,19 +17,18 @@ from .host_state import ContextGuard, native, on_context
 from .limits import check_resolution
 from .materials import MaterialRegistry
 from .methods import method_class, require_method_id
+from .pipeline.assemble import assemble
 from .pipeline.config import PipelineConfig, load_pipeline
+from .pipeline.device import Antialiasing, Device
 from .pipeline.draw_cache import DrawCache
 from .pipeline.drawlist import build_draw_list
-from .pipeline.frame import FrameResult, FrameState
+from .pipeline.frame import FrameContext, FrameResult
+from .pipeline.retry import settle
 from .pipeline.settings import resolve_settings
 from .present import Presenter
-from .raster import RasterRouter
-from .registry import PASSES
+from .raster.router import RasterRouter
 from .scene.graph import Scene
-from .shaders import ShaderLibrary, SourceMap, mat_bytes, set_uniform, set_uniforms
-
-_FIRST_RESOURCES = {"draw_list", "lights"}
-_TEXTURE_UNIT_BASE = 8  # units below are used by the passes' own inputs
+from .shaders import ShaderLibrary
 
 
 def method_settings(
@@ -104,60 +103,58 @@ class Renderer:
 
     def _build(self, pipeline, method, method_overrides, material_paths, template_paths) -> None:
         self.config = load_pipeline(pipeline)
+        programs = ShaderLibrary(self.ctx, template_paths)
+        aa = self.config.antialiasing
         # samples per pixel the G-buffer and coverage masks hold (a device may round antialiasing.samples up)
-        self.shaders = ShaderLibrary(self.ctx, template_paths)
-        asked = self.config.antialiasing["samples"]
-        self.samples = antialiasing.check_device(self.ctx, asked, self.caps.renderer, self.shaders)
-        # where those samples lie (the compute rasterizer tests coverage there): the probe that
-        # counted them, cached; made here, as it binds a framebuffer and a storage buffer of its own
-        self.sample_positions = antialiasing.sample_positions(self.ctx, asked, self.shaders) if asked > 1 else ()
-        # antialiasing.merge: adjacent triangles' samples join the node of the one covering the pixel
-        # centre (the compute rasterizer's setup stage; nothing to merge with one sample)
-        self.aa_merge = self.samples > 1 and self.config.antialiasing["merge"] == "adjacent"
+        samples = antialiasing.check_device(self.ctx, aa["samples"], self.caps.gl_renderer, programs)
+        self.device = Device(
+            self.ctx,
+            self.caps,
+            programs,
+            MeshCache(self.ctx),
+            TextureCache(self.ctx),
+            Antialiasing(
+                samples=samples,
+                asked=aa["samples"],
+                # where those samples lie (the compute rasterizer tests coverage there): the probe that
+                # counted them, cached; made here, as it binds a framebuffer and a storage buffer of its own
+                positions=antialiasing.sample_positions(self.ctx, aa["samples"], programs) if aa["samples"] > 1 else (),
+                # antialiasing.merge: adjacent triangles' samples join the node of the one covering the
+                # pixel centre (the compute rasterizer's setup stage; nothing to merge with one sample)
+                merge=samples > 1 and aa["merge"] == "adjacent",
+                merge_crease_deg=aa["merge_crease_deg"],
+            ),
+        )
         self.materials = MaterialRegistry(material_paths)
-        self.meshes = MeshCache(self.ctx)
-        self.textures = TextureCache(self.ctx)
-        self._fullscreen_vaos: dict[int, object] = {}
-        self.presenter = Presenter(self)
+        self.presenter = Presenter(self.device)
         self.draw_cache = DrawCache()
         self.frame_serial = 0  # frames rendered; a FrameResult's texture is valid while this is unchanged
         self._queries: dict[tuple[str, int], object] = {}
         self._frame_index = 0
         self._previous_timers: dict | None = None
-        self.raster = RasterRouter(self)  # hardware or compute rasterization of transparent draws
+        self.raster = RasterRouter(self.device)  # hardware or compute rasterization of transparent draws
         self.set_method(method or self.config.transparency["method"], method_overrides)
-        self.passes = [PASSES.get(p.name)(self, p.settings) for p in self.config.passes]
-        available = set(_FIRST_RESOURCES)
-        for p, pc in zip(self.passes, self.config.passes):
-            missing = [r for r in p.reads if r not in available]
-            if missing:
-                raise ConfigError(
-                    f"pass '{p.name}' reads {', '.join(missing)} which no earlier pass writes",
-                    self.config.source,
-                    pc.line,
-                    "passes",
-                )
-            available |= set(p.writes)
-        if self.fuse_passes:
-            self._fuse_passes()
+        self.passes = assemble(self.config, self.device, self.fuse_passes)
 
-    def _fuse_passes(self) -> None:
-        """Let a pass apply the per-pixel pass right after it to its own output (one full-screen write and read fewer).
+    @property
+    def shaders(self) -> ShaderLibrary:
+        """The program builder: templates to compiled programs, cached by their variables."""
+        return self.device.programs
 
-        Fused when the later pass is per-pixel, reads only what the earlier one writes, and no pass
-        after them reads that intermediate resource (it is then never made). The default
-        pipeline's composite thus writes the tone-mapped image itself.
-        """
-        for i in range(len(self.passes) - 1):
-            first, second = self.passes[i], self.passes[i + 1]
-            if not (first.accepts_epilogue and first.epilogue is None and first.fused_into is None):
-                continue
-            if not second.per_pixel or len(second.reads) != 1 or second.reads[0] not in first.writes:
-                continue
-            if any(second.reads[0] in later.reads for later in self.passes[i + 2 :]):
-                continue
-            first.set_epilogue(second)
-            second.fused_into = first.name
+    @property
+    def samples(self) -> int:
+        """Samples per pixel the frame holds (antialiasing.samples, as the device renders it)."""
+        return self.device.samples
+
+    @property
+    def meshes(self) -> MeshCache:
+        """GPU meshes, shared by content."""
+        return self.device.meshes
+
+    @property
+    def textures(self) -> TextureCache:
+        """GPU textures of materials."""
+        return self.device.textures
 
     @on_context
     def set_method(self, mid: str, overrides: dict | None = None) -> None:
@@ -166,10 +163,10 @@ class Renderer:
         cls = method_class(mid)
         reason = cls.unsupported_reason(self.caps)
         if reason:
-            raise UnsupportedMethodError(f"method '{mid}' cannot run on {self.caps.renderer}: {reason}")
+            raise UnsupportedMethodError(f"method '{mid}' cannot run on {self.caps.gl_renderer}: {reason}")
         antialiasing.check_method(cls, self.samples)
         method = cls(method_settings(mid, self.config.transparency, overrides, self.config.source), self.caps)
-        method.aa_samples = self.samples  # coverage masks in its nodes; the compute rasterizer has none
+        method.aa_samples = self.device.samples  # coverage masks in its nodes; the compute rasterizer has none
         refusal = method.compute_raster_refusal() if method.settings["raster"] == "compute" else None
         if refusal:
             raise UnsupportedMethodError(
@@ -182,105 +179,6 @@ class Renderer:
     def pass_named(self, name: str):
         """The pass instance called `name` (compulsory passes always exist)."""
         return next(p for p in self.passes if p.name == name)
-
-    # ------------------------------------------------------------------ drawing
-    def geometry_program(self, draw, transparent: bool):
-        """Program for (triangle mesh, material, opaque|transparent method variant), compiled once."""
-        mat = draw.material
-        mvars = self.method.template_vars() if transparent else {}
-        key = (
-            "triangle_mesh",
-            str(mat.path),
-            transparent,
-            self.method.id if transparent else None,
-            tuple(sorted((k, str(v)) for k, v in mvars.items())),
-        )
-        smap = SourceMap()
-        label = f"material '{mat.name}'"
-
-        def methods(stage):
-            return "".join(
-                smap.insert(m.source, m.file, m.first_line, f"{label} method '{m.name}'")
-                for m in mat.methods.get(stage, [])
-            )
-
-        common = {"material_uniforms": "\n".join(u.glsl_decl() for u in mat.uniforms.values())}
-        frag = dict(
-            common,
-            transparent=transparent,
-            visibility_methods=methods("visibility"),
-            visibility_calls=[m.name for m in mat.methods["visibility"]],
-            **mvars,
-            method_extensions=self.method.extensions() if transparent else "",
-            method_fragment_template=self.method.fragment_template() if transparent else "",
-            antialiased=self.samples > 1,  # centroid attributes (antialiasing.samples)
-        )
-        vert = dict(
-            common,
-            displacement_methods=methods("displacement"),
-            displacement_calls=[m.name for m in mat.methods["displacement"]],
-        )
-        return self.shaders.program(
-            key,
-            {
-                "vertex_shader": ("geometry/triangle_mesh.vert.j2", vert),
-                "fragment_shader": ("geometry/triangle_mesh.frag.j2", frag),
-            },
-            smap,
-            label=f"{label} ({mat.path})",
-        )
-
-    def apply_material(self, draw, programs) -> None:
-        """Bind the draw's material textures to their units and set its uniform values on `programs`.
-
-        Every sampler gets its own unit whether or not a given program reads it, so the values hold
-        for every program of the material (the compute rasterizer sets them on four kernels); the
-        values are converted once for all of them.
-        """
-        unit = _TEXTURE_UNIT_BASE
-        values = []
-        for name, spec in draw.material.uniforms.items():
-            value = draw.values[name]
-            if spec.type == "sampler2D":
-                self.textures.get(value, draw.material.path.parent).use(location=unit)
-                value, unit = unit, unit + 1
-            elif spec.type == "mat4":
-                value = mat_bytes(np.asarray(value, dtype=np.float64).reshape(4, 4))
-            elif isinstance(value, list):
-                value = tuple(value)
-            values.append((name, value))
-        for prog in programs:
-            set_uniforms(prog, values)
-
-    def draw_list(self, frame, draws, transparent: bool, uniforms: dict | None = None, per_program=None) -> None:
-        """Draw `draws` with their (opaque or transparent) programs and the given extra uniforms."""
-        last = last_values = None
-        programs: dict[int, object] = {}  # per material description, for this call (the method's state is fixed)
-        for d in draws:
-            prog = programs.get(id(d.material))
-            if prog is None:
-                prog = programs[id(d.material)] = self.geometry_program(d, transparent)
-            switched = prog is not last
-            if switched:
-                frame.set_frame_uniforms(prog)
-                for k, v in (uniforms or {}).items():
-                    set_uniform(prog, k, v)
-                if per_program is not None:
-                    per_program(prog)
-                last = prog
-            d.write_transform(prog)
-            set_uniform(prog, "gua_draw_index", d.index)
-            if switched or d.values is not last_values:  # the same instance as the draw before is all set
-                self.apply_material(d, (prog,))
-                last_values = d.values
-            self.meshes.vao(d.mesh, prog).render(moderngl.TRIANGLES)
-
-    def fullscreen(self, prog) -> None:
-        """Draw one screen-covering triangle with `prog`."""
-        vao = self._fullscreen_vaos.get(prog.glo)
-        if vao is None:
-            vao = self._fullscreen_vaos[prog.glo] = self.ctx.vertex_array(prog, [])
-        vao.render(moderngl.TRIANGLES, vertices=3)
 
     # ------------------------------------------------------------------ frames
     def _timed(self, name: str, fn):
@@ -335,13 +233,18 @@ class Renderer:
         )
         cam = scene.camera
         draws = build_draw_list(scene, self.materials, self.draw_cache)
-        frame = FrameState(self, scene, w, h, draws, cam.view_matrix(), cam.projection_matrix(w / h))
+        frame = FrameContext(
+            self.device, self.method, self.raster, scene, w, h, draws, cam.view_matrix(), cam.projection_matrix(w / h)
+        )
         frame.late_counters = not read_back
+        frame.resources.enter(None)
+        frame.resources["draw_list"] = draws
+        frame.resources["lights"] = list(scene.lights)
         frame.stats.update(
             {
                 "method": self.method.id,
                 "insertion_path": self.caps.insertion_path,
-                "device": self.caps.renderer,
+                "device": self.caps.gl_renderer,
                 "resolution": [w, h],
                 "draws": len(draws),
                 "transparent_draws": len(frame.transparent_draws),
@@ -351,24 +254,30 @@ class Renderer:
         )
         t0 = time.perf_counter()
         timers = {}
+        kind = "off"
         for p in self.passes:
             if p.fused_into is not None:  # an earlier pass did its work (its time is in that pass's)
                 continue
-            for _attempt in range(1 + 16):
+            frame.resources.enter(p.name, p.reads, p.writes)
+
+            def attempt(p=p) -> bool:
+                nonlocal kind
                 warned = len(frame.stats.get("warnings", []))
                 if stats:
-                    timer, kind = self._timed(p.name, lambda p=p: p.execute(frame))
+                    timers[p.name], kind = self._timed(p.name, lambda: p.execute(frame))
                 else:
                     p.execute(frame)
-                    timer, kind = (lambda: 0.0), "off"
+                    timers[p.name], kind = (lambda: 0.0), "off"
                 p.collect(frame)  # after the timer: its reads may wait for the GPU
-                if not frame.rerender:
-                    break
-                frame.rerender = False
-                frame.stats["regrown"] += 1
-                del frame.stats.get("warnings", [])[warned:]  # that attempt's overflow is repaired
-            timers[p.name] = timer
+                if frame.rerender:
+                    frame.rerender = False
+                    del frame.stats.get("warnings", [])[warned:]  # that attempt's overflow is repaired
+                    return True
+                return False
+
+            settle(attempt, frame.stats)
             frame.stats["timer"] = kind
+        frame.resources.enter(None)
         if not stats:
             frame.stats["passes"] = {name: {"ms": 0.0} for name in timers}
         elif read_back or kind != "gpu" or self._previous_timers is None:
@@ -387,21 +296,21 @@ class Renderer:
                     frame.stats["passes"][p.fused_into]["includes"] = p.name
         self._previous_timers = None if read_back or not stats else timers
         self._frame_index += 1
-        frame.stats.setdefault("memory", {}).update(self.method.memory() if frame.transparent_draws else {})
+        frame.stats.section("memory").update(self.method.memory() if frame.transparent_draws else {})
         declared = self.method.geometry_passes
         frame.stats.setdefault("geometry_passes", declared if frame.transparent_draws and declared is not None else 1)
         if kind == "gpu" and any(p["ms"] >= 4294.9 for p in frame.stats["passes"].values()):
-            frame.stats.setdefault("warnings", []).append(
+            frame.stats.warn(
                 "a pass took longer than the 32-bit GPU timer result can hold (4.29 s); its time is clipped"
             )
         frame.stats["frame_wall_ms"] = round((time.perf_counter() - t0) * 1e3, 3)
-        self.meshes.end_frame()
-        self.textures.end_frame()
+        self.device.meshes.end_frame()
+        self.device.textures.end_frame()
         self.frame_serial += 1
-        tex = frame.resources["color"]
+        tex = frame.resources.output
         if target is not None:
             self.presenter.draw(tex, target, viewport)
-        result = FrameResult(None, frame.stats, texture=tex, reader=self._reader(tex, self.frame_serial))
+        result = FrameResult(None, dict(frame.stats), texture=tex, reader=self._reader(tex, self.frame_serial))
         if read_back:
             result.read()
         return result
@@ -432,15 +341,10 @@ class Renderer:
             p.release()
         self.method.release()
         self.raster.release()
-        self.meshes.release()
-        self.textures.release()
         for q in self._queries.values():
             q.release()
         self._queries.clear()
-        for vao in self._fullscreen_vaos.values():
-            vao.release()
-        self._fullscreen_vaos.clear()
-        self.shaders.release()
+        self.device.release()
 
     def release(self) -> None:
         """Free every GPU resource the renderer holds, and its context when it made its own."""

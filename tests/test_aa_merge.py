@@ -224,7 +224,7 @@ def test_merge_setting_validated_and_idle_at_one_sample(renderer_factory):
     with pytest.raises(ConfigError, match=r"merge_crease_deg.*must be in \(0, 180\], got 0"):
         pipeline_from_text("antialiasing: {samples: 4, merge: adjacent, merge_crease_deg: 0}\n", "p.yaml")
     r = renderer_factory(with_settings(EXACT, {"merge": "adjacent"}, "test"), method_overrides=COMPUTE)
-    assert not r.aa_merge  # nothing to merge with one sample per pixel
+    assert not r.device.antialiasing.merge  # nothing to merge with one sample per pixel
     assert "merge" not in r.render(spheres(flat), 16, 16).stats["antialiasing"]
 
 

@@ -327,9 +327,9 @@ def test_gpu_variants_at_8_samples_pass_the_reference_compiler(aa_renderers, tmp
     seen = {}
     original = composite.CompositePass.compile
 
-    def spy(self, variables, key, template=None):
+    def spy(self, variables, template=None):
         seen.update(variables)
-        return original(self, variables, key, template)
+        return original(self, variables, template)
 
     monkeypatch.setattr(composite.CompositePass, "compile", spy)
     scene = random_quads(4, n=3)
@@ -338,11 +338,10 @@ def test_gpu_variants_at_8_samples_pass_the_reference_compiler(aa_renderers, tmp
     m = method_class(method)(method_settings(method, {}), caps)
     m.aa_samples = 8
     sources = {}
-    monkeypatch.setattr(r.shaders, "program", lambda key, stages, smap=None, label="": stages)
-    monkeypatch.setattr(r, "method", m)
-    monkeypatch.setattr(r, "samples", 8)
+    monkeypatch.setattr(r.shaders, "program", lambda stages, smap=None, label="": stages)
+    monkeypatch.setattr(r.device, "antialiasing", dataclasses.replace(r.device.antialiasing, samples=8))
     draw = next(d for d in build_draw_list(scene, r.materials) if d.transparent)
-    for stage, (template, variables) in r.geometry_program(draw, True).items():
+    for stage, (template, variables) in r.raster.hardware.program(m, draw, True).items():
         sources["frag" if stage == "fragment_shader" else "vert"] = r.shaders.render(template, **variables)
     cvars = dict(seen, method_extensions=m.resolve_extensions(), **m.template_vars())
     cvars.update(aa_samples=8, output_image_unit=OUTPUT_IMAGE_UNIT, output_format="rgba32f")

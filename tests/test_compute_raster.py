@@ -285,7 +285,7 @@ def test_material_needing_derivatives_is_named(renderer_factory, tmp_path):
     from guaca_py.raster.choice import auto_choice
 
     a = renderer_factory("exact", method="presort_lf", method_overrides={"raster": "auto"}, material_paths=[mats])
-    a.caps = type(a.caps)(**{**a.caps.as_dict(), "software": False})  # as a GPU would decide
+    a.device.caps = type(a.caps)(**{**a.caps.as_dict(), "software": False})  # as a GPU would decide
     frame = a.render(scene, 32, 32)
     assert frame.stats["raster"]["hardware_draws"] == 1
     assert any("dFdx" in w for w in frame.stats["raster"]["why"])
@@ -366,7 +366,7 @@ def test_auto_mixes_both_rasterizers_in_one_frame(renderer_factory, monkeypatch)
 
     monkeypatch.setattr(choice, "AUTO_MAX_MEAN_AREA_PX", 64.0)
     r = renderer_factory("exact", method="presort_lf_et", method_overrides={"raster": "auto"})
-    r.caps = dataclasses.replace(r.caps, software=False)
+    r.device.caps = dataclasses.replace(r.caps, software=False)
     fine = Node(
         "fine",
         Transform((0.0, 0.0, 0.5), (0.0, 0.0, 5.0)),
@@ -397,16 +397,13 @@ def test_gpu_variants_generate_compute_kernels(renderer_factory):
     caps = dataclasses.replace(r.caps, atomic_int64=True)
     m = method_class("presort_lf_et")(dict(r.method.settings), caps)
     assert m.path == "64bit"
-    r.method, saved = m, r.method
+    draw = build_draw_list(layered_quads_scene(n_layers=2), r.materials)[0]
+    cr = r.raster.compute
+    cr.device.programs.program = lambda stages, smap, label: stages  # capture, do not compile
     try:
-        draw = build_draw_list(layered_quads_scene(n_layers=2), r.materials)[0]
-        cr = r.raster.compute
-        cr.renderer.shaders.program = lambda key, stages, smap, label: stages  # capture, do not compile
-        stages = [s["compute_shader"] for s in cr._programs(draw)]
+        stages = [s["compute_shader"] for s in cr._programs(m, draw)]
     finally:
-        r.method = saved
-        del cr.renderer.shaders.program
-        cr._program_sets.clear()  # the captured stages are no programs
+        del cr.device.programs.program
     for template, variables in stages[1:]:
         src = r.shaders.render(template, **variables)
         code = re.sub(r"//[^\n]*", "", src)
@@ -524,9 +521,8 @@ def test_gpu_variants_pass_the_reference_compiler(renderer_factory, tmp_path, me
     m = method_class(method)(method_settings(method, {"raster": "compute"}), caps)
     m.aa_samples = r.samples
     cr = r.raster.compute
-    r.method, saved = m, r.method
     try:
-        cr.renderer.shaders.program = lambda key, stages, smap, label: stages  # capture, do not compile
+        cr.device.programs.program = lambda stages, smap, label: stages  # capture, do not compile
         mats = {
             "pbr": {"alpha": 0.5},
             "fresnel_glass": {},
@@ -538,11 +534,9 @@ def test_gpu_variants_pass_the_reference_compiler(renderer_factory, tmp_path, me
         for node in scene.nodes:
             node.material = MaterialInstance(node.name, mats[node.name])
         draws = build_draw_list(scene, r.materials)
-        stages = [s["compute_shader"] for d in draws for s in cr._programs(d)]
+        stages = [s["compute_shader"] for d in draws for s in cr._programs(m, d)]
     finally:
-        r.method = saved
-        del cr.renderer.shaders.program
-        cr._program_sets.clear()  # the captured stages are no programs
+        del cr.device.programs.program
     assert all(d.transparent for d in draws) and len(stages) == 4 * len(mats)
     stages += [
         *(("raster/args.comp.j2", {**cr._raster_vars(), "args_mode": m}) for m in (1, 2)),
@@ -651,11 +645,11 @@ def test_auto_takes_compute_for_every_size_where_the_method_asks(renderer_factor
     r = renderer_factory("exact", method="presort_cs_et")
     scene = simple_scene([quad_node("big", 0.0, (0.5, 0.5, 0.5), 0.5, size=12.0)])
     draw = next(d for d in build_draw_list(scene, r.materials) if d.transparent)
-    monkeypatch.setattr(r, "caps", dataclasses.replace(r.caps, software=False))
+    monkeypatch.setattr(r.device, "caps", dataclasses.replace(r.caps, software=False))
     monkeypatch.setattr(r.method, "auto_compute_reason", "spin lock for compute kernels")
-    assert r.raster.choose(None, draw) == ("compute", "spin lock for compute kernels")
+    assert r.raster.choose(types.SimpleNamespace(method=r.method), draw) == ("compute", "spin lock for compute kernels")
     monkeypatch.setattr(r.method, "auto_compute_reason", None)  # the area rule: a screen-filling quad
-    frame = types.SimpleNamespace(projection=np.eye(4), view=np.eye(4), width=1024, height=1024)
+    frame = types.SimpleNamespace(method=r.method, projection=np.eye(4), view=np.eye(4), width=1024, height=1024)
     kind, why = r.raster.choose(frame, draw)
     assert kind == "hardware" and "area" in why, (kind, why)
 

@@ -109,11 +109,11 @@ def test_opaque_only_scene_has_no_abuffer(renderer_factory):
     from guaca_py.pipeline.drawlist import build_draw_list
 
     d = build_draw_list(scene, r.materials)[0]
-    src = r.geometry_program(d, transparent=False)._gua_sources["fragment_shader"]
+    src = r.raster.hardware.program(r.method, d, transparent=False)._gua_sources["fragment_shader"]
     for needle in ("gua_links", "gua_nodes", "atomic", "early_fragment_tests"):
         assert needle not in src, needle
     assert not re.search(r"\bbuffer\s+\w+\s*\{", src)  # no storage buffer declared
-    tsrc = r.geometry_program(d, transparent=True)._gua_sources["fragment_shader"]
+    tsrc = r.raster.hardware.program(r.method, d, transparent=True)._gua_sources["fragment_shader"]
     assert "gua_links" in tsrc  # the check above would notice A-buffer code
 
 

@@ -222,12 +222,13 @@ def test_stats_reported(measurements, label):
 def test_object_sorted_order_is_back_to_front(renderer_factory):
     from guaca_py.methods.approximate import world_bbox_centre
     from guaca_py.pipeline.drawlist import build_draw_list
-    from guaca_py.pipeline.frame import FrameState
+    from guaca_py.pipeline.frame import FrameContext
 
     scene = layered_quads_scene(n_layers=8, order="shuffled", seed=1, with_opaque=False)
     r = renderer_factory("exact", method="object_sorted_blend")
     draws = build_draw_list(scene, r.materials)
-    frame = FrameState(r, scene, 32, 32, draws, scene.camera.view_matrix(), scene.camera.projection_matrix(1.0))
+    view, proj = scene.camera.view_matrix(), scene.camera.projection_matrix(1.0)
+    frame = FrameContext(r.device, r.method, r.raster, scene, 32, 32, draws, view, proj)
     order = r.method.draw_order(frame)
     assert sorted(d.index for d in order) == sorted(d.index for d in draws)
     dist = [np.linalg.norm(world_bbox_centre(d) - frame.camera_position) for d in order]

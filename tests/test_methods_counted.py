@@ -155,7 +155,7 @@ def test_two_pass_programs_differ_by_phase(renderer_factory):
     srcs = {}
     for phase in ("count", "store"):
         r.method.phase = phase
-        srcs[phase] = r.geometry_program(d, transparent=True)._gua_sources["fragment_shader"]
+        srcs[phase] = r.raster.hardware.program(r.method, d, transparent=True)._gua_sources["fragment_shader"]
     r.method.phase = "resolve"
     assert "gua_pack_payload" not in srcs["count"] and "gua_pack_payload" in srcs["store"]
     assert "early_fragment_tests" in srcs["count"]  # counted fragments are those the store pass sees

@@ -276,11 +276,10 @@ def test_interlock_variant_passes_the_reference_compiler(renderer_factory, tmp_p
     m = method_class(method)(method_settings(method, {}), caps)
     assert m.order == "interlock"
     m._phase = "dual" if method == "dual_depth_peeling" else "nearest"  # their ordered geometry phases
-    monkeypatch.setattr(r.shaders, "program", lambda key, stages, smap=None, label="": stages)
-    monkeypatch.setattr(r, "method", m)
+    monkeypatch.setattr(r.shaders, "program", lambda stages, smap=None, label="": stages)
     scene = layered_quads_scene(n_layers=2, order="shuffled", seed=1)
     draw = next(d for d in build_draw_list(scene, r.materials) if d.transparent)
-    for stage, (template, variables) in r.geometry_program(draw, True).items():
+    for stage, (template, variables) in r.raster.hardware.program(m, draw, True).items():
         text = r.shaders.render(template, **variables)
         if stage == "fragment_shader":
             assert "pixel_interlock_ordered" in text and "imageStore(gua_ord0" in text

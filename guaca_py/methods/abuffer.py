@@ -21,6 +21,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import moderngl
+
 from ..gpu_counters import CounterBlock
 from ..limits import pool_node_limit
 from ..pipeline.settings import Setting, auto_or_positive_mb, non_negative, positive
@@ -158,7 +160,7 @@ class ABuffer(TransparencyMethod):
         self._alloc(frame.ctx, frame.pixel_count, cap, (frame.width, frame.height))
         self._counters.reset(alloc=1)  # node 0 is the null link
         self._counts = None
-        clear = frame.renderer.shaders.compute("abuffer/clear.comp.j2")
+        clear = frame.programs.compute("abuffer/clear.comp.j2")
         self._links.bind_to_storage_buffer(0)
         self._cull.bind_to_image(0, read=False, write=True)
         set_uniforms(
@@ -184,10 +186,10 @@ class ABuffer(TransparencyMethod):
 
     def render_transparent(self, frame) -> None:
         """One geometry pass: every transparent fragment tries to insert itself."""
-        mgl = frame.renderer.moderngl
+        mgl = moderngl
         g = frame.resources["gbuffer"]
-        g["depth_only"].use()
-        g["depth_only"].depth_mask = False  # hardware test against opaque depth only
+        g.depth_only.use()
+        g.depth_only.depth_mask = False  # hardware test against opaque depth only
         frame.ctx.enable(mgl.DEPTH_TEST)
         frame.ctx.depth_func = "<"
         self._bind()
@@ -199,7 +201,7 @@ class ABuffer(TransparencyMethod):
                 "gua_ab_threshold": self.threshold(),
             }
         )
-        g["fbo"].depth_mask = True
+        g.fbo.depth_mask = True
 
     def finish(self, frame) -> bool:
         """Read counters; with an 'auto' budget, grow the pool to the need and ask for a re-render.
@@ -214,7 +216,7 @@ class ABuffer(TransparencyMethod):
             abandoned = self.read_counters()["lock_abandoned"]
             frame.stats["fragments"]["lock_abandoned"] = abandoned
             if abandoned:
-                frame.stats.setdefault("warnings", []).append(
+                frame.stats.warn(
                     f"{abandoned} fragments gave up waiting for their pixel's lock (max_spin) and were dropped"
                 )
         if self.lock is not None:
@@ -244,12 +246,12 @@ class ABuffer(TransparencyMethod):
         }
         self._last = {"used_nodes": used}
         if c["overflow"]:
-            frame.stats.setdefault("warnings", []).append(
+            frame.stats.warn(
                 f"A-buffer overflow{' in the previous frame' if late else ''}: {c['overflow']} fragments dropped "
                 f"(pool {capacity - 1} nodes, frame asked for {requested}); {self._overflow_hint()}"
             )
         if c["guard"]:
-            frame.stats.setdefault("warnings", []).append(f"{c['guard']} insertions hit max_steps and were dropped")
+            frame.stats.warn(f"{c['guard']} insertions hit max_steps and were dropped")
         auto = self.settings["budget_mb"] == "auto"
         grow = self.capacity < self.max_capacity(self._pixels)
         if c["overflow"] and auto and late:
@@ -283,7 +285,7 @@ class ABuffer(TransparencyMethod):
         fr = frame.stats.setdefault("fragments", {})
         fr["truncated"], fr["truncated_pixels"] = c["truncated"], c["truncated_pixels"]
         if c["truncated"]:
-            frame.stats.setdefault("warnings", []).append(self._truncation_warning(c))
+            frame.stats.warn(self._truncation_warning(c))
 
     def _truncation_warning(self, c: dict) -> str:
         if self.kind.resolve == "post_sort":

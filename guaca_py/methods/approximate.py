@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import moderngl
 import numpy as np
 
 from ..gpu_timer import SamplesQuery
@@ -37,7 +38,7 @@ _FILL_GROUPS_MAX = 4096
 
 def fill_uint_buffer(frame, buffer, count: int, value: int) -> None:
     """Set the first `count` uint words of `buffer` to `value` on the GPU."""
-    prog = frame.renderer.shaders.compute("approx/fill.comp.j2")
+    prog = frame.programs.compute("approx/fill.comp.j2")
     buffer.bind_to_storage_buffer(0)
     prog["gua_fill_count"] = count
     prog["gua_fill_value"] = value
@@ -111,7 +112,7 @@ class ForwardBlend(TransparencyMethod):
         return [(4, self.accum_dtype, (0.0, 0.0, 0.0, 1.0)), (1, self.accum_dtype, (0.0, 0.0, 0.0, 0.0))]
 
     def _alloc(self, frame) -> None:
-        depth = frame.resources["gbuffer"]["depth"]
+        depth = frame.resources["gbuffer"].depth
         key = (frame.width, frame.height, depth.glo)
         if key == self._key:
             return
@@ -167,7 +168,7 @@ class ForwardBlend(TransparencyMethod):
 
     def _blended_pass(self, frame, uniforms: dict | None = None) -> None:
         """Draw the transparent list once into the accumulation targets, counting fragments as 'blended'."""
-        mgl = frame.renderer.moderngl
+        mgl = moderngl
         ctx = frame.ctx
         self._fbo.depth_mask = False
         self._fbo.use()
@@ -219,21 +220,21 @@ class ForwardBlend(TransparencyMethod):
 
     def _stochastic_passes(self, frame) -> None:
         """Pass 1 stochastic depth (depth test only), pass 2 shaded accumulation."""
-        mgl = frame.renderer.moderngl
+        mgl = moderngl
         ctx = frame.ctx
         uniforms = {"gua_stoch_seed": int(self.settings["seed"]) & 0xFFFFFFFF}
         g = frame.resources["gbuffer"]
         try:
             self._phase = "depth"
-            g["depth_only"].depth_mask = False
-            g["depth_only"].use()
+            g.depth_only.depth_mask = False
+            g.depth_only.use()
             ctx.enable(mgl.DEPTH_TEST)
             ctx.disable(mgl.BLEND)
             ctx.depth_func = "<"
             self._depth.bind_to_storage_buffer(0)
             with self.samples_query(ctx, "depth_pass"):  # reported beside 'blended' (finish)
                 frame.draw_transparent(uniforms)
-            g["depth_only"].depth_mask = True
+            g.depth_only.depth_mask = True
             ctx.memory_barrier()
             self._phase = "accum"
             self._depth.bind_to_storage_buffer(0)

@@ -12,7 +12,7 @@ from ..raster.choice import RASTER_ORDER_SETTING, RASTER_SETTING
 
 if TYPE_CHECKING:
     from ..context import Capabilities
-    from ..pipeline.frame import FrameState
+    from ..pipeline.frame import FrameContext
 
 
 # Extensions that only mean something in a fragment shader; the composite resolve is compute.
@@ -177,14 +177,14 @@ class TransparencyMethod:
             if line.strip() and not any(f in line for f in _FRAGMENT_ONLY_EXTENSIONS)
         )
 
-    def prepare(self, frame: FrameState) -> None:
+    def prepare(self, frame: FrameContext) -> None:
         """Allocate/clear per-frame storage before transparent geometry is drawn."""
 
-    def render_transparent(self, frame: FrameState) -> None:
+    def render_transparent(self, frame: FrameContext) -> None:
         """Draw the transparent draw list (frame.draw_transparent) as many times as the method needs."""
         raise NotImplementedError
 
-    def finish(self, frame: FrameState) -> bool:
+    def finish(self, frame: FrameContext) -> bool:
         """Read counters into frame.stats; return True to ask for the frame to be rendered again."""
         return False
 
@@ -193,10 +193,10 @@ class TransparencyMethod:
         """Template included by the composite pass; defines gua_resolve_transparent()."""
         raise NotImplementedError
 
-    def bind_composite(self, frame: FrameState, program) -> None:
+    def bind_composite(self, frame: FrameContext, program) -> None:
         """Bind storage and uniforms the resolve code reads."""
 
-    def after_composite(self, frame: FrameState) -> None:
+    def after_composite(self, frame: FrameContext) -> None:
         """Read what the composite pass counted (e.g. fragments a resolve had to truncate) into frame.stats."""
 
     def composite_threshold(self) -> float:
@@ -225,7 +225,7 @@ def resolve_lock(method_id: str, lock: str, caps: Capabilities) -> str:
     """The critical section a method runs with: 'interlock' or 'spin'; a missing interlock is refused."""
     if lock == "interlock" and not caps.fragment_interlock:
         raise UnsupportedMethodError(
-            f"method '{method_id}' with lock 'interlock' cannot run on {caps.renderer}: "
+            f"method '{method_id}' with lock 'interlock' cannot run on {caps.gl_renderer}: "
             "no GL_ARB_fragment_shader_interlock (use lock 'spin' or 'auto')"
         )
     # a contended spin lock serializes badly on GPUs (measured: the k-buffer took 854 ms of

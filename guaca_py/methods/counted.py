@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import moderngl
 import numpy as np
 
 from ..gpu_counters import CounterBlock, StagedReader
@@ -84,8 +85,8 @@ class CountedStorage(TransparencyMethod):
     # ------------------------------------------------------------------ helpers
     def _tools(self, frame) -> None:
         if self._scan is None:
-            self._scan = PrefixSum(frame.ctx, frame.renderer.shaders)
-            self._fill = GpuFill(frame.renderer.shaders)
+            self._scan = PrefixSum(frame.ctx, frame.programs)
+            self._fill = GpuFill(frame.programs)
             self._reader = StagedReader(frame.ctx)
 
     def _buffer(self, ctx, name: str, nbytes: int):
@@ -120,10 +121,10 @@ class CountedStorage(TransparencyMethod):
 
     def _state_begin(self, frame) -> None:
         """Transparent draws test against the opaque depth without writing it."""
-        mgl = frame.renderer.moderngl
+        mgl = moderngl
         g = frame.resources["gbuffer"]
-        g["depth_only"].use()
-        g["depth_only"].depth_mask = False
+        g.depth_only.use()
+        g.depth_only.depth_mask = False
         frame.ctx.enable(mgl.DEPTH_TEST)
         frame.ctx.depth_func = "<"
 
@@ -141,7 +142,7 @@ class CountedStorage(TransparencyMethod):
                 self._bufs[name].bind_to_storage_buffer(binding)
 
     def _warn(self, frame, text: str) -> None:
-        frame.stats.setdefault("warnings", []).append(text)
+        frame.stats.warn(text)
 
     # ------------------------------------------------------------------ frame
     def prepare(self, frame) -> None:
@@ -160,7 +161,7 @@ class CountedStorage(TransparencyMethod):
         else:
             self._count_and_store(frame)
         self.phase = "resolve"
-        frame.resources["gbuffer"]["fbo"].depth_mask = True
+        frame.resources["gbuffer"].fbo.depth_mask = True
 
     def finish(self, frame) -> bool:
         """Read the counters into frame.stats; paged_ll may grow its pool and ask for a re-render."""
@@ -204,7 +205,7 @@ class CountedStorage(TransparencyMethod):
         s = int(self.settings["counters"])
         self._fill.run(self._bufs["groups"], s, 0)
         frame.ctx.memory_barrier()
-        prog = frame.renderer.shaders.compute("counted/sbuffer_address.comp.j2", counters=s)
+        prog = frame.programs.compute("counted/sbuffer_address.comp.j2", counters=s)
         self._bufs["pixels"].bind_to_storage_buffer(0)
         self._bufs["counts"].bind_to_storage_buffer(2)
         self._bufs["groups"].bind_to_storage_buffer(5)

@@ -8,6 +8,8 @@ approx/kbuffer_insert.glsl.j2). Fragments beyond k are merged into the farthest 
 
 from __future__ import annotations
 
+import moderngl
+
 from ..gpu_counters import CounterBlock
 from ..limits import require_bytes
 from ..pipeline.settings import Setting
@@ -66,16 +68,16 @@ class KBuffer(TransparencyMethod):
 
     def render_transparent(self, frame) -> None:
         """One geometry pass against the opaque depth (writes off); every fragment tries to insert."""
-        mgl = frame.renderer.moderngl
+        mgl = moderngl
         g = frame.resources["gbuffer"]
-        g["depth_only"].depth_mask = False
-        g["depth_only"].use()
+        g.depth_only.depth_mask = False
+        g.depth_only.use()
         frame.ctx.enable(mgl.DEPTH_TEST)
         frame.ctx.depth_func = "<"
         self._bind()
         frame.draw_transparent()
-        g["depth_only"].depth_mask = True
-        g["fbo"].depth_mask = True
+        g.depth_only.depth_mask = True
+        g.fbo.depth_mask = True
 
     def finish(self, frame) -> bool:
         """Counters → stats (a frame late in a loop without read-back); overflow and lock-guard drops become warnings."""
@@ -103,12 +105,12 @@ class KBuffer(TransparencyMethod):
         over = c["merged"] + c["dropped"]
         if over:
             how = "merged into the farthest slot" if self.settings["overflow"] == "merge" else "dropped"
-            frame.stats.setdefault("warnings", []).append(
+            frame.stats.warn(
                 f"k-buffer overflow: {over} fragments beyond k={self.k} {how} (deepest pixel had "
                 f"{c['max_count']} fragments); raise transparency.k for an exact result"
             )
         if c["guard"]:
-            frame.stats.setdefault("warnings", []).append(
+            frame.stats.warn(
                 f"k-buffer: {c['guard']} fragments hit max_spins waiting for a pixel lock and were dropped"
             )
         return False

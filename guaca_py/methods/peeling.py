@@ -26,6 +26,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+import moderngl
+
 from ..errors import UnsupportedMethodError
 from ..gpu_counters import CounterBlock
 from ..pipeline.settings import Setting
@@ -120,7 +122,7 @@ class Peeling(TransparencyMethod):
         if needs_ordering and self.order is None:
             raise UnsupportedMethodError(
                 f"method '{self.id}' with ordering '{settings.get('ordering')}' cannot run "
-                f"on {caps.renderer}: the device lacks that extension"
+                f"on {caps.gl_renderer}: the device lacks that extension"
             )
         self._phase = "composite"
         self._shading: dict = {}
@@ -167,7 +169,7 @@ class Peeling(TransparencyMethod):
         if self._size == size and self._tex:
             return
         self._release_textures()
-        mgl = frame.renderer.moderngl
+        mgl = moderngl
         for name, (comps, dtype) in self.texture_specs().items():
             t = frame.ctx.texture(size, comps, dtype=dtype)
             t.filter = (mgl.NEAREST, mgl.NEAREST)
@@ -218,7 +220,7 @@ class Peeling(TransparencyMethod):
     def step(self, frame, name: str) -> None:
         """Run one compute step of peeling/step.comp.j2 over every pixel."""
         slots = self.slot_names()
-        prog = frame.renderer.shaders.compute(
+        prog = frame.programs.compute(
             "peeling/step.comp.j2",
             method=self.step_method,
             step=name,
@@ -233,7 +235,7 @@ class Peeling(TransparencyMethod):
         frame.bind_lights(prog)
         set_uniform(prog, "gua_threshold", self.composite_threshold())
         if set_uniform(prog, "gua_peel_opaque", UNIT_OPAQUE):
-            frame.resources["gbuffer"]["depth"].use(location=UNIT_OPAQUE)
+            frame.resources["gbuffer"].depth.use(location=UNIT_OPAQUE)
         self._bind_step_storage(frame)
         units = {"acc_front": 0, "acc_back": 1, "bounds": 2, "range": 3}
         for name_, unit in units.items():
@@ -265,7 +267,7 @@ class Peeling(TransparencyMethod):
         g = frame.resources["gbuffer"]
         if "bounds" not in self.phase_slots(self._phase):  # never sample a texture the pass renders to
             self._tex["bounds"].use(location=UNIT_BOUNDS)
-        g["depth"].use(location=UNIT_OPAQUE)
+        g.depth.use(location=UNIT_OPAQUE)
         if "range" in self._tex:
             self._tex["range"].use(location=UNIT_RANGE)
         self._counters.bind(4)
@@ -275,7 +277,7 @@ class Peeling(TransparencyMethod):
         self, frame, phase: str, slots: list[str], draws=None, uniforms: dict | None = None, per_program=None
     ) -> None:
         """One pass over the transparent draws (or `draws`) that updates the slots in primitive order."""
-        mgl = frame.renderer.moderngl
+        mgl = moderngl
         ctx = frame.ctx
         if self.order == "fetch" and slots:
             self._fbo(frame, phase, slots).use()
@@ -303,7 +305,7 @@ class Peeling(TransparencyMethod):
 
     def composite_range_pass(self, frame, draws=None) -> None:
         """Shade the fragments inside each pixel's range in place and blend them under the front accumulation."""
-        mgl = frame.renderer.moderngl
+        mgl = moderngl
         ctx = frame.ctx
         self._fbo(frame, "composite_range", ["acc_front"]).use()
         ctx.disable(mgl.DEPTH_TEST | mgl.CULL_FACE)

@@ -2,32 +2,42 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, ClassVar
 
+import moderngl
+
+from ..pipeline.device import Device
 from ..pipeline.settings import Setting
 from ..shaders import set_uniform
 
 if TYPE_CHECKING:
-    from ..pipeline.frame import FrameState
+    from ..pipeline.frame import FrameContext
 
 
 class Pass:
-    """A stage of the frame. `reads`/`writes` name entries of FrameState.resources."""
+    """A stage of the frame. `reads`/`writes` name the typed resources it uses (pipeline/resources.py).
+
+    Passes are built once with the device and their settings, then run per frame with the frame
+    context as their only input: they never reach the Renderer.
+    """
 
     name: ClassVar[str] = ""
     reads: ClassVar[tuple[str, ...]] = ()
     writes: ClassVar[tuple[str, ...]] = ()
     SETTINGS: ClassVar[dict[str, Setting]] = {}
     # A per-pixel pass maps its one read to its one write pixel by pixel (no neighbours, no other
-    # input), so the pass writing that read may apply it to its own output instead (Renderer
-    # fuses them when the pipeline is built, see Renderer._fuse_passes).
+    # input), so the pass writing that read may apply it to its own output instead (fused when the
+    # pipeline is built, see pipeline/assemble.py).
     per_pixel: ClassVar[bool] = False
     # Whether this pass can take a per-pixel pass as an epilogue of its output (see set_epilogue).
     accepts_epilogue: ClassVar[bool] = False
 
-    def __init__(self, renderer, settings: dict):
-        self.renderer = renderer
+    def __init__(self, device: Device, settings: dict, readers: Mapping[str, tuple[str, ...]] | None = None):
+        self.device = device
         self.settings = settings
+        # resource -> the passes of this pipeline that read it (a pass may skip work nobody reads)
+        self.readers: Mapping[str, tuple[str, ...]] = readers or {}
         self.fused_into: str | None = None  # set when an earlier pass does this pass's work
         self.epilogue: Pass | None = None  # the per-pixel pass this one applies to its output
 
@@ -44,15 +54,15 @@ class Pass:
         raise NotImplementedError
 
     @property
-    def ctx(self):
+    def ctx(self) -> moderngl.Context:
         """The moderngl context."""
-        return self.renderer.ctx
+        return self.device.ctx
 
-    def execute(self, frame: FrameState) -> None:
+    def execute(self, frame: FrameContext) -> None:
         """Run the pass for one frame."""
         raise NotImplementedError
 
-    def collect(self, frame: FrameState) -> None:
+    def collect(self, frame: FrameContext) -> None:
         """After execute() and outside the pass's timer: read what the pass counted (may set frame.rerender).
 
         A read can wait for the GPU; inside the timer, the CPU work after that wait would count as
@@ -94,15 +104,15 @@ class FullscreenPass(Pass):
     # data-centre GPUs (H100: the same arithmetic ran 32x slower in a fragment shader).
     compute: ClassVar[bool] = False
 
-    def __init__(self, renderer, settings):
-        super().__init__(renderer, settings)
+    def __init__(self, device: Device, settings: dict, readers: Mapping[str, tuple[str, ...]] | None = None):
+        super().__init__(device, settings, readers)
         self._target = None
 
-    def program(self, frame: FrameState):
+    def program(self, frame: FrameContext):
         """The compiled program of this pass (templated on its settings)."""
-        return self.compile(dict(self.settings), (self.name, tuple(sorted(self.settings.items()))))
+        return self.compile(dict(self.settings))
 
-    def compile(self, variables: dict, key, template: str | None = None):
+    def compile(self, variables: dict, template: str | None = None):
         """Compile `template` (default: the pass's) as this pass's kind of program."""
         template = template or self.template
         if self.compute:
@@ -112,20 +122,20 @@ class FullscreenPass(Pass):
             stages = {"compute_shader": (template, variables)}
         else:
             stages = {"vertex_shader": ("composite/fullscreen.vert.j2", {}), "fragment_shader": (template, variables)}
-        return self.renderer.shaders.program(key, stages, label=self.name)
+        return self.device.programs.program(stages, label=self.name)
 
-    def target(self, frame: FrameState):
+    def target(self, frame: FrameContext):
         """The output framebuffer, reallocated on resolution change."""
         size = (frame.width, frame.height)
         if self._target is None or self._target.size != size:
             self.release()
             tex = self.ctx.texture(size, 4, dtype=self.target_dtype)
-            tex.filter = (self.renderer.moderngl.LINEAR, self.renderer.moderngl.LINEAR)
+            tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
             tex.repeat_x = tex.repeat_y = False
             self._target = self.ctx.framebuffer(color_attachments=[tex])
         return self._target
 
-    def run_fullscreen(self, frame: FrameState, prog, inputs: dict) -> object:
+    def run_fullscreen(self, frame: FrameContext, prog, inputs: dict) -> moderngl.Texture:
         """Bind input textures to units, write every pixel of the target, return the output texture."""
         fbo = self.target(frame)
         for unit, (uname, tex) in enumerate(inputs.items()):
@@ -139,8 +149,8 @@ class FullscreenPass(Pass):
             self.ctx.memory_barrier(IMAGE_OUTPUT_BARRIERS)  # later passes sample the result (or read it back)
             return out
         fbo.use()
-        self.ctx.disable(self.renderer.moderngl.DEPTH_TEST | self.renderer.moderngl.BLEND)
-        self.renderer.fullscreen(prog)
+        self.ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND)
+        self.device.fullscreen(prog)
         return out
 
     def release(self) -> None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..pipeline.retry import settle
 from ..registry import register
 from ..shaders import set_uniform
 from .base import FullscreenPass
@@ -14,7 +15,7 @@ class CompositePass(FullscreenPass):
     """Full-screen pass producing linear HDR color ('hdr').
 
     With a per-pixel epilogue (tone mapping right after it, nothing else reading 'hdr': see
-    Renderer._fuse_passes) it applies that to each pixel before storing and writes the
+    pipeline/assemble.py) it applies that to each pixel before storing and writes the
     epilogue's output ('ldr', RGBA8) instead.
     """
 
@@ -26,11 +27,11 @@ class CompositePass(FullscreenPass):
     template = "composite/shade_composite.comp.j2"
     accepts_epilogue = True
 
-    def __init__(self, renderer, settings):
-        super().__init__(renderer, settings)
+    def __init__(self, device, settings, readers=None):
+        super().__init__(device, settings, readers)
         # Only tone mapping reads the HDR result when a pipeline has it, and half floats hold more than
         # its 8-bit output resolves (half the bytes to write and read); the linear output stays float32.
-        if any(p.name == "tone_mapping" for p in renderer.config.passes):
+        if "tone_mapping" in self.readers.get("hdr", ()):
             self.target_dtype = "f2"
 
     def set_epilogue(self, epilogue) -> None:
@@ -42,34 +43,32 @@ class CompositePass(FullscreenPass):
 
     def program(self, frame):
         """Composite program for this method, light lookup and transparency presence."""
-        method = frame.resources.get("transparent")
-        lights = frame.shading_vars()
+        store = frame.resources["transparent"]
         tvars = dict(
-            has_transparency=method is not None,
-            has_opaque=frame.resources["gbuffer"]["has_opaque"],
-            **lights,
-            method_extensions=method.resolve_extensions() if method else "",
-            method_resolve_template=method.resolve_template() if method else "",
-            **(method.template_vars() if method else {}),
+            has_transparency=store is not None,
+            has_opaque=frame.resources["gbuffer"].has_opaque,
+            **frame.shading_vars(),
+            method_extensions=store.resolve_extensions() if store else "",
+            method_resolve_template=store.resolve_template() if store else "",
+            **(store.template_vars() if store else {}),
         )
-        tvars["aa_samples"] = self.renderer.samples  # per-sample accumulators where > 1
+        tvars["aa_samples"] = self.device.samples  # per-sample accumulators where > 1
         tvars["tone_map"] = self.epilogue is not None
         if self.epilogue is not None:
             tvars.update(self.epilogue.epilogue_vars())
-        key = ("composite", tuple(sorted((k, str(v)) for k, v in tvars.items())), method.id if method else None)
-        return self.compile(tvars, key)
+        return self.compile(tvars)
 
     def execute(self, frame) -> None:
         """Shade every pixel; writes frame.resources['hdr']."""
-        method = frame.resources.get("transparent")
-        if method is not None and method.geometry_in_composite:
-            self._method_geometry(frame, method)
+        store = frame.resources["transparent"]
+        if store is not None and store.draws_in_composite:  # after light culling: it shades as it draws
+            settle(lambda: store.draw(frame), frame.stats)
         prog = self.program(frame)
         frame.set_frame_uniforms(prog)
-        self.renderer.pass_named("light_culling").bind(frame, prog)
-        if method is not None:
-            method.bind_composite(frame, prog)
-        threshold = method.composite_threshold() if method else 1.0
+        frame.bind_lights(prog)
+        if store is not None:
+            store.bind(frame, prog)
+        threshold = store.threshold() if store else 1.0
         set_uniform(prog, "gua_threshold", threshold)  # compiled out when nothing is composited under the fragments
         set_uniform(prog, "gua_background", np.asarray(frame.scene.background, dtype=np.float32).tobytes())
         if self.epilogue is not None:
@@ -79,24 +78,14 @@ class CompositePass(FullscreenPass):
             frame,
             prog,
             {
-                "gbuf_albedo": g["albedo"],
-                "gbuf_normal": g["normal"],
-                "gbuf_material": g["material"],
-                "gbuf_depth": g["depth"],
+                "gbuf_albedo": g.albedo,
+                "gbuf_normal": g.normal,
+                "gbuf_material": g.material,
+                "gbuf_depth": g.depth,
             },
         )
-        if method is not None:
-            method.after_composite(frame)
-        if method is None and not g["has_opaque"]:  # nothing drawn: the background (or its tone map) everywhere
+        if store is not None:
+            store.after_composite(frame)
+        if store is None and not g.has_opaque:  # nothing drawn: the background (or its tone map) everywhere
             frame.uniform_textures.add(tex.glo)
-        frame.resources[self.writes[0]] = frame.resources["color"] = tex
-
-    def _method_geometry(self, frame, method) -> None:
-        """Methods that shade while drawing run their geometry passes here, after light culling."""
-        for _ in range(1 + 16):
-            method.prepare(frame)
-            method.render_transparent(frame)
-            self.ctx.memory_barrier()
-            if not method.finish(frame):
-                break
-            frame.stats["regrown"] = frame.stats.get("regrown", 0) + 1
+        frame.resources[self.writes[0]] = tex

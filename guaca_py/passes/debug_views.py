@@ -43,18 +43,14 @@ def legend_rows(height: int) -> int:
     return 2 * s + 5 * s + s + 2 * s + 4 * s + 2 * s
 
 
-def depth_complexity_unsupported(method) -> str | None:
-    """Why the depth-complexity view cannot read `method`'s storage, or None when it can."""
-    from ..methods.abuffer import ABuffer
-
-    if method is None:
+def depth_complexity_unsupported(store) -> str | None:
+    """Why the depth-complexity view cannot read the transparent store, or None when it can."""
+    if store is None or store.resolve_template() in _LIST_LAYOUTS:
         return None
-    if not isinstance(method, ABuffer) or method.resolve_template() not in _LIST_LAYOUTS:
-        return (
-            f"method '{method.id}' keeps no per-pixel A-buffer lists to count (supported: the "
-            f"presort_lf family, post_sort, post_merge16)"
-        )
-    return None
+    return (
+        f"method '{store.method_id}' keeps no per-pixel A-buffer lists to count (supported: the "
+        f"presort_lf family, post_sort, post_merge16)"
+    )
 
 
 class _HeatView(FullscreenPass):
@@ -70,8 +66,8 @@ class _HeatView(FullscreenPass):
         prog["gua_show_legend"] = bool(self.settings["legend"])
 
     def _finish(self, frame, tex, info: dict) -> None:
-        frame.resources["ldr"] = frame.resources["color"] = tex
-        frame.stats.setdefault("debug_views", {})[self.name] = info
+        frame.resources["ldr"] = tex
+        frame.stats.section("debug_views")[self.name] = info
 
 
 @register("pass")
@@ -87,10 +83,9 @@ class DebugLightCountPass(_HeatView):
 
     def program(self, frame):
         """Program variant for grid / no grid."""
-        grid = frame.resources["light_grid"]["grid"] is not None
+        grid = frame.resources["light_grid"].grid is not None
         tvars = {"light_grid": grid, "heat_anchors": len(HEAT_ANCHORS)}
-        return self.renderer.shaders.program(
-            (self.name, grid),
+        return self.device.programs.program(
             {
                 "vertex_shader": ("composite/fullscreen.vert.j2", {}),
                 "fragment_shader": ("post/debug_light_count.frag.j2", tvars),
@@ -107,14 +102,14 @@ class DebugLightCountPass(_HeatView):
         tex = self.run_fullscreen(frame, prog, {})
         lg = frame.resources["light_grid"]
         info = {"max_shown": int(self.settings["max"])}
-        if lg["grid"] is not None:
-            counts = self.renderer.pass_named("light_culling").grid_bits().sum(axis=0)
+        if lg.grid is not None:
+            counts = lg.bits().sum(axis=0)
             info.update(
                 tile_max=int(counts.max()) if counts.size else 0,
                 tile_mean=round(float(counts.mean()), 3) if counts.size else 0.0,
             )
         else:
-            info.update(tile_max=lg["count"], tile_mean=float(lg["count"]))
+            info.update(tile_max=lg.count, tile_mean=float(lg.count))
         self._finish(frame, tex, info)
 
 
@@ -131,20 +126,18 @@ class DebugDepthComplexityPass(_HeatView):
 
     def program(self, frame):
         """Program variant for the frame's transparency method (its list layout and extensions)."""
-        method = frame.resources.get("transparent")
+        store = frame.resources["transparent"]
         tvars = {
             "heat_anchors": len(HEAT_ANCHORS),
-            "has_transparency": method is not None,
+            "has_transparency": store is not None,
             "method_extensions": "",
             "walk_limit": 1 << 16,
             "count_lists": 1,
         }
-        if method is not None:
-            tvars.update(method.template_vars())
-            tvars.update(method_extensions=method.extensions(), count_lists=_LIST_LAYOUTS[method.resolve_template()])
-        key = (self.name, method.id if method else None, tuple(sorted((k, str(v)) for k, v in tvars.items())))
-        return self.renderer.shaders.program(
-            key,
+        if store is not None:
+            tvars.update(store.template_vars())
+            tvars.update(method_extensions=store.extensions(), count_lists=_LIST_LAYOUTS[store.resolve_template()])
+        return self.device.programs.program(
             {
                 "vertex_shader": ("composite/fullscreen.vert.j2", {}),
                 "fragment_shader": ("post/debug_depth_complexity.frag.j2", tvars),
@@ -154,17 +147,17 @@ class DebugDepthComplexityPass(_HeatView):
 
     def execute(self, frame) -> None:
         """Draw the depth-complexity heat map, or report why the method's storage cannot be read."""
-        method = frame.resources.get("transparent")
-        reason = depth_complexity_unsupported(method)
+        store = frame.resources["transparent"]
+        reason = depth_complexity_unsupported(store)
         if reason:
-            frame.stats.setdefault("warnings", []).append(f"debug_depth_complexity unsupported: {reason}")
-            frame.stats.setdefault("debug_views", {})[self.name] = {"supported": False, "reason": reason}
+            frame.stats.warn(f"debug_depth_complexity unsupported: {reason}")
+            frame.stats.section("debug_views")[self.name] = {"supported": False, "reason": reason}
             return
         prog = self.program(frame)
         frame.set_frame_uniforms(prog)
         self._set_heat(prog)
-        if method is not None:
-            method.bind_composite(frame, prog)
+        if store is not None:
+            store.bind(frame, prog)
         tex = self.run_fullscreen(frame, prog, {})
         self._finish(
             frame,

@@ -26,10 +26,10 @@ class FxaaPass(FullscreenPass):
         src = frame.resources["ldr"]
         if src.glo in frame.uniform_textures:
             # no luma contrast anywhere: every pixel would store its own texel unchanged
-            frame.stats.setdefault("skipped", {})[self.name] = "the image holds one colour (no edges)"
+            frame.stats.section("skipped")[self.name] = "the image holds one colour (no edges)"
             return
         prog = self.program(frame)
         set_uniform(prog, "gua_edge_threshold", float(self.settings["edge_threshold"]))
         set_uniform(prog, "gua_resolution", (float(frame.width), float(frame.height)))
         tex = self.run_fullscreen(frame, prog, {"gua_input": src})
-        frame.resources["ldr"] = frame.resources["color"] = tex
+        frame.resources["ldr"] = tex

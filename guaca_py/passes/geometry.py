@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import moderngl
+
+from ..pipeline.resources import GBuffer, TransparentStore
 from ..registry import register
 from .base import Pass
 
@@ -14,8 +17,8 @@ class GeometryPass(Pass):
     reads = ("draw_list",)
     writes = ("gbuffer", "transparent")
 
-    def __init__(self, renderer, settings):
-        super().__init__(renderer, settings)
+    def __init__(self, device, settings, readers=None):
+        super().__init__(device, settings, readers)
         self._gbuffer = None
         self._samples = 1
         self._depth_clean = False  # the G-buffer depth holds 1.0 everywhere (cleared, nothing drawn since)
@@ -23,7 +26,7 @@ class GeometryPass(Pass):
     def gbuffer(self, frame):
         """G-buffer framebuffer (albedo, normal+roughness, emissive+metalness, depth)."""
         size = (frame.width, frame.height)
-        samples = self.renderer.samples
+        samples = self.device.samples
         if self._gbuffer is None or self._gbuffer.size != size or self._samples != samples:
             self.release()
             ctx = self.ctx
@@ -40,7 +43,7 @@ class GeometryPass(Pass):
 
     def execute(self, frame) -> None:
         """Fill the G-buffer, then let the transparency method store the transparent fragments."""
-        mgl = self.renderer.moderngl
+        mgl = moderngl
         fbo = self.gbuffer(frame)
         fbo.use()
         fbo.depth_mask = True
@@ -61,25 +64,27 @@ class GeometryPass(Pass):
         if has_opaque:
             frame.draw_opaque()
             self._depth_clean = False
-        g = {
-            "fbo": fbo,
-            "depth_only": self._depth_only,
-            "albedo": fbo.color_attachments[0],
-            "normal": fbo.color_attachments[1],
-            "material": fbo.color_attachments[2],
-            "depth": fbo.depth_attachment,
-            "has_opaque": has_opaque,
+        frame.resources["gbuffer"] = GBuffer(
+            fbo=fbo,
+            depth_only=self._depth_only,
+            albedo=fbo.color_attachments[0],
+            normal=fbo.color_attachments[1],
+            material=fbo.color_attachments[2],
+            depth=fbo.depth_attachment,
+            has_opaque=has_opaque,
+            samples=self._samples,
+        )
+        aa = self.device.antialiasing
+        frame.stats["antialiasing"] = {
+            "samples": self._samples,
+            **({"asked": aa.asked} if aa.asked != self._samples else {}),
         }
-        frame.resources["gbuffer"] = g
-        asked = self.renderer.config.antialiasing["samples"]
-        frame.stats["antialiasing"] = {"samples": self._samples, **({"asked": asked} if asked != self._samples else {})}
-        if self.renderer.aa_merge:
-            crease = self.renderer.config.antialiasing["merge_crease_deg"]
-            frame.stats["antialiasing"].update(merge="adjacent", merge_crease_deg=crease)
-        frame.stats.setdefault("memory", {})["gbuffer"] = frame.pixel_count * (3 * 8 + 4) * self._samples
-        method = self.renderer.method
+        if aa.merge:
+            frame.stats["antialiasing"].update(merge="adjacent", merge_crease_deg=aa.merge_crease_deg)
+        frame.stats.memory("gbuffer", frame.pixel_count * (3 * 8 + 4) * self._samples)
+        method = frame.method
         has_transparency = bool(frame.transparent_draws)
-        frame.resources["transparent"] = method if has_transparency else None
+        frame.resources["transparent"] = TransparentStore(method) if has_transparency else None
         if has_transparency and not method.geometry_in_composite:
             method.prepare(frame)
             method.render_transparent(frame)
@@ -90,13 +95,13 @@ class GeometryPass(Pass):
 
     def collect(self, frame) -> None:
         """The method's and the compute rasterizer's counters (an overflow asks for the frame again)."""
-        method = self.renderer.method
+        method = frame.method
         if frame.transparent_draws and not method.geometry_in_composite:
             frame.rerender = method.finish(frame)
-            frame.rerender = self.renderer.raster.finish(frame) or frame.rerender
+            frame.rerender = frame.raster.finish(frame) or frame.rerender
         hardware = frame.stats.get("raster", {}).get("hardware_draws", 0)
-        if self.renderer.aa_merge and hardware:  # the hardware path keeps a node per triangle and pixel
-            frame.stats.setdefault("warnings", []).append(
+        if self.device.antialiasing.merge and hardware:  # the hardware path keeps a node per triangle and pixel
+            frame.stats.warn(
                 f"antialiasing.merge: adjacent applies to compute-rasterized draws; {hardware} transparent draws "
                 "went through the hardware rasterizer unmerged (transparency.raster: compute merges them)"
             )

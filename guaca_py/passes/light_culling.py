@@ -6,11 +6,13 @@ import math
 from dataclasses import fields
 from functools import cached_property
 
+import moderngl
 import numpy as np
 
 from ..errors import DeviceError
 from ..gpu_counters import UploadBuffer
 from ..pipeline.draw_cache import freeze
+from ..pipeline.resources import LIGHT_GRID_UNIT, LIGHTS_BUFFER, LightGrid
 from ..pipeline.settings import Setting, positive
 from ..registry import register
 from ..shaders import mat_bytes, set_uniform, set_uniforms
@@ -29,7 +31,6 @@ RING_SEGMENTS = 16  # proxy: sides of the circumscribed polygon around the light
 # Largest distance of a proxy vertex from the light, in units of its range.
 PROXY_EXTENT = 1.0 / (math.cos(math.pi / RING_SEGMENTS) * math.cos(math.pi / (2 * ARC_SEGMENTS)))
 PROXY_VERTICES = (ARC_SEGMENTS + 2) * RING_SEGMENTS * 6
-LIGHT_GRID_UNIT = 31  # texture unit of the grid: above the G-buffer (0-3), method (4-7) and material (8+) units
 _PLANE_MARGIN = 1e-3  # relative: proxies this close to the near/far plane count as crossing it
 # up to this many lights the light table is kept while their values stay the same; comparing every
 # field costs more than gathering the table past ~5 lights (2 lights: 7.6 against 16.8 us, 16: 58 against
@@ -77,8 +78,8 @@ class LightCullingPass(Pass):
         ),
     }
 
-    def __init__(self, renderer, settings):
-        super().__init__(renderer, settings)
+    def __init__(self, device, settings, readers=None):
+        super().__init__(device, settings, readers)
         self._lights = UploadBuffer(self.ctx)  # shaders read it per fragment: GPU-placed, filled by copy
         self._everywhere = self._grid = self._fbo = None
         self._grid_key = None
@@ -89,7 +90,7 @@ class LightCullingPass(Pass):
         self._raw_gl = None
         self._vaos: dict = {}
         self._table, self._table_key = None, None  # the last light table and the light values it holds
-        self.mode, self.mode_note = self._resolve_mode(settings["mode"], renderer.caps)
+        self.mode, self.mode_note = self._resolve_mode(settings["mode"], device.caps)
 
     def _resolve_mode(self, mode: str, caps) -> tuple[str, str]:
         """The construction mode this device runs, and why."""
@@ -101,7 +102,7 @@ class LightCullingPass(Pass):
             if mode == "conservative":
                 raise DeviceError(
                     f"light_culling mode 'conservative' needs GL_NV_conservative_raster, which "
-                    f"{caps.renderer} does not have; use mode 'auto' or 'fallback'"
+                    f"{caps.gl_renderer} does not have; use mode 'auto' or 'fallback'"
                 )
             return "fallback", "GL_NV_conservative_raster not available"
         gl = raw_gl()
@@ -112,7 +113,7 @@ class LightCullingPass(Pass):
                 else "glEnable(GL_CONSERVATIVE_RASTERIZATION_NV) did not take effect"
             )
             if mode == "conservative":
-                raise DeviceError(f"light_culling mode 'conservative': {reason} on {caps.renderer}")
+                raise DeviceError(f"light_culling mode 'conservative': {reason} on {caps.gl_renderer}")
             return "fallback", reason
         gl.disable(GL_CONSERVATIVE_RASTERIZATION_NV)
         self._raw_gl = gl
@@ -161,7 +162,7 @@ class LightCullingPass(Pass):
             return
         self._release_grid()
         self._grid = self.ctx.texture_array((tw, th, alloc), 1, dtype="u4")
-        self._grid.filter = (self.renderer.moderngl.NEAREST, self.renderer.moderngl.NEAREST)
+        self._grid.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self._fbo = self.ctx.empty_framebuffer((tw, th))
         self._everywhere = UploadBuffer(self.ctx)
         self._grid_key, self.layers_allocated = (tw, th), alloc
@@ -176,7 +177,7 @@ class LightCullingPass(Pass):
     def _build_grid(self, frame, count: int, n_raster: int) -> None:
         from ..gl_state import GL_CONSERVATIVE_RASTERIZATION_NV
 
-        mgl = self.renderer.moderngl
+        mgl = moderngl
         tw, th = grid_shape(frame.width, frame.height, self.settings["tile_size"])
         layers = -(-count // 32)
         self._ensure_grid(tw, th, layers)
@@ -184,7 +185,7 @@ class LightCullingPass(Pass):
         for i in range(n_raster, count):  # lights that reach every tile
             masks[i // 32] |= np.uint32(1 << (i % 32))
         self._everywhere.upload(masks.tobytes(), min_size=masks.nbytes)
-        clear = self.renderer.shaders.compute("light_grid/clear.comp.j2")
+        clear = self.device.programs.compute("light_grid/clear.comp.j2")
         self._grid.bind_to_image(0, read=False, write=True)
         self._everywhere.bind(0)
         set_uniform(clear, "gua_grid_dims", (tw, th, self.layers_allocated))
@@ -204,7 +205,7 @@ class LightCullingPass(Pass):
             self._fbo.use()
             self.ctx.disable(mgl.DEPTH_TEST | mgl.BLEND | mgl.CULL_FACE)
             self._grid.bind_to_image(0, read=True, write=True)
-            self._lights.bind(3)
+            self._lights.bind(LIGHTS_BUFFER)
             vao = self._vaos.get(prog.glo)
             if vao is None:
                 vao = self._vaos[prog.glo] = self.ctx.vertex_array(prog, [])
@@ -227,9 +228,7 @@ class LightCullingPass(Pass):
         }
         if dilate:
             stages["geometry_shader"] = ("light_grid/dilate.geom.j2", {})
-        return self.renderer.shaders.program(
-            ("light_grid_proxy", dilate, ARC_SEGMENTS, RING_SEGMENTS), stages, label="light grid proxies"
-        )
+        return self.device.programs.program(stages, label="light grid proxies")
 
     # ------------------------------------------------------------------ pass
     def execute(self, frame) -> None:
@@ -251,15 +250,18 @@ class LightCullingPass(Pass):
         if self.mode != "off" and self.grid_skipped is None:
             self._build_grid(frame, len(lights), n_raster)
             grid = self._grid
-        frame.resources["light_grid"] = {
-            "buffer": self._lights.buffer,
-            "count": len(lights),
-            "grid": grid,
-            # no grid built: no layer to read (the composite then reads no grid texel, stale or not)
-            "layers": -(-len(lights) // 32) if grid is not None else 0,
-            "tile_size": self.settings["tile_size"],
-        }
         tw, th = grid_shape(frame.width, frame.height, self.settings["tile_size"])
+        frame.resources["light_grid"] = LightGrid(
+            buffer=self._lights.buffer,
+            count=len(lights),
+            grid=grid,
+            # no grid built: no layer to read (the composite then reads no grid texel, stale or not)
+            layers=-(-len(lights) // 32) if grid is not None else 0,
+            layers_allocated=self.layers_allocated,
+            tile_size=self.settings["tile_size"],
+            tiles=(tw, th),
+            template_vars=self.template_vars(),
+        )
         stats = {
             "scene": len(frame.scene.lights),
             "visible": visible,
@@ -270,8 +272,7 @@ class LightCullingPass(Pass):
             "mode_reason": self.mode_note,
             "tile_size": self.settings["tile_size"],
         }
-        mem = frame.stats.setdefault("memory", {})
-        mem["lights"] = len(data)
+        frame.stats.memory("lights", len(data))
         if self.grid_skipped is not None:
             stats["grid_skipped"] = self.grid_skipped
         if grid is not None:
@@ -284,19 +285,17 @@ class LightCullingPass(Pass):
                     "every_tile": len(lights) - n_raster,
                 }
             )
-            mem["light_grid"] = tw * th * self.layers_allocated * 4
+            frame.stats.memory("light_grid", tw * th * self.layers_allocated * 4)
             if self.settings["report_accuracy"]:
                 stats["grid_check"] = self.grid_check(frame)
         frame.stats["lights"] = stats
         if dropped:
-            frame.stats.setdefault("warnings", []).append(
-                f"{dropped} visible lights over max_lights={self.settings['max_lights']} were not shaded"
-            )
+            frame.stats.warn(f"{dropped} visible lights over max_lights={self.settings['max_lights']} were not shaded")
 
     @cached_property
     def _only_composite_reads_grid(self) -> bool:
         """Whether the composite is the only pass reading the light grid (debug views read it too)."""
-        return all(p.name == "composite" for p in self.renderer.passes if "light_grid" in p.reads)
+        return all(name == "composite" for name in self.readers.get("light_grid", ()))
 
     def _skip_reason(self, frame, count: int) -> str | None:
         """Why this frame needs no light grid, or None: no light to assign, or no surface to shade.
@@ -332,19 +331,6 @@ class LightCullingPass(Pass):
             self.packed_lights, frame.view, frame.projection, frame.width, frame.height, self.settings["tile_size"]
         )
         return compare_grids(exact, self.grid_bits())
-
-    def bind(self, frame, prog) -> None:
-        """Bind the light list (and grid, when built) for a shading program."""
-        lg = frame.resources["light_grid"]
-        lg["buffer"].bind_to_storage_buffer(3)
-        set_uniform(prog, "gua_light_count", lg["count"])
-        # its own unit even without a grid (no sampler type may share a unit with another);
-        # with 0 layers nothing samples it
-        if set_uniform(prog, "gua_light_bits", LIGHT_GRID_UNIT):
-            if lg["grid"] is not None:
-                lg["grid"].use(location=LIGHT_GRID_UNIT)
-            set_uniform(prog, "gua_tile_size", lg["tile_size"])
-            set_uniform(prog, "gua_light_layers", lg["layers"])
 
     def template_vars(self) -> dict:
         """Shader variables describing how lights are looked up."""

@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from ..pipeline.resources import unpack_grid
 from ..scene.graph import Light
 
 # corners 0-3 on the near plane, 4-7 on the far plane, counter-clockwise seen from the eye
@@ -148,13 +149,6 @@ def exact_tile_lights(
                 hit[todo] = rim < rad[i]
             out[i] = hit
     return out.reshape(len(lights), th, tw)
-
-
-def unpack_grid(words: np.ndarray, count: int) -> np.ndarray:
-    """Bool (count, th, tw) from light-grid words (layers, th, tw): bit i % 32 of layer i // 32."""
-    words = np.asarray(words, dtype=np.uint32)
-    i = np.arange(count)
-    return ((words[i // 32] >> (i % 32).astype(np.uint32)[:, None, None]) & 1).astype(bool)
 
 
 def compare_grids(exact: np.ndarray, assigned: np.ndarray) -> dict:

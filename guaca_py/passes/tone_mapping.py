@@ -46,4 +46,4 @@ class ToneMappingPass(FullscreenPass):
         tex = self.run_fullscreen(frame, prog, {"gua_input": src})
         if src.glo in frame.uniform_textures:  # per pixel: one colour in, one colour out
             frame.uniform_textures.add(tex.glo)
-        frame.resources["ldr"] = frame.resources["color"] = tex
+        frame.resources["ldr"] = tex

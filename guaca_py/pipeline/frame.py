@@ -1,4 +1,4 @@
-"""Per-frame state that flows through the passes, and the frame result handed back."""
+"""The frame context that flows through the passes, and the frame result handed back."""
 
 from __future__ import annotations
 
@@ -7,11 +7,14 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..shaders import mat_bytes, set_uniforms
+from .device import Device
+from .resources import FrameResources
+from .stats import FrameStats
 
 if TYPE_CHECKING:
     from ..scene.graph import Scene
@@ -19,18 +22,26 @@ if TYPE_CHECKING:
 
 
 @dataclass
-class FrameState:
-    """What one frame carries between passes: camera, draw list, named resources, stats."""
+class FrameContext:
+    """What one frame hands its passes: the device, the method, the draw list, typed resources, stats.
 
-    renderer: object
+    Passes, the method and the rasterizers receive it as their argument; it holds no Renderer.
+    `raster` draws geometry (hardware or compute, per draw); the views are `view`/`projection`.
+    """
+
+    device: Device
+    # the transparency method (methods.base.TransparencyMethod) and the rasterizer router
+    # (raster.router.RasterRouter): typed loosely, as both import this module
+    method: Any
+    raster: Any
     scene: Scene
     width: int
     height: int
     draws: list[Draw]
     view: np.ndarray
     projection: np.ndarray
-    resources: dict = field(default_factory=dict)
-    stats: dict = field(default_factory=dict)
+    resources: FrameResources = field(default_factory=FrameResources)
+    stats: FrameStats = field(default_factory=FrameStats)
     rerender: bool = False
     # Frame loops without read-back: counters are read a frame late instead of waiting for the GPU
     # (the stats then describe the previous frame, and an overflow grows the pool for the next one)
@@ -43,12 +54,17 @@ class FrameState:
     @property
     def ctx(self):
         """The moderngl context."""
-        return self.renderer.ctx
+        return self.device.ctx
 
     @property
     def caps(self):
         """Device capabilities."""
-        return self.renderer.caps
+        return self.device.caps
+
+    @property
+    def programs(self):
+        """The program builder (templates -> compiled programs, cached by their variables)."""
+        return self.device.programs
 
     @property
     def pixel_count(self) -> int:
@@ -60,7 +76,7 @@ class FrameState:
         """World-space eye position."""
         return np.linalg.inv(self.view)[:3, 3]
 
-    @property
+    @cached_property
     def transparent_draws(self) -> list[Draw]:
         """Draws whose material instance can produce alpha < 1."""
         return [d for d in self.draws if d.transparent]
@@ -82,11 +98,11 @@ class FrameState:
 
     def bind_lights(self, prog) -> None:
         """Bind the culled lights (and light grid) for a program that includes shading/lighting."""
-        self.renderer.pass_named("light_culling").bind(self, prog)
+        self.resources["light_grid"].bind(prog)
 
     def shading_vars(self) -> dict:
         """Template variables shading/lighting.glsl.j2 needs (light lookup mode)."""
-        return self.renderer.pass_named("light_culling").template_vars()
+        return dict(self.resources["light_grid"].template_vars)
 
     def draw_transparent(
         self, uniforms: dict | None = None, per_program: Callable | None = None, order: list[Draw] | None = None
@@ -96,11 +112,11 @@ class FrameState:
         Each draw goes through the hardware or the compute rasterizer (transparency.raster).
         """
         draws = self.transparent_draws if order is None else order
-        self.renderer.raster.draw(self, draws, uniforms or {}, per_program)
+        self.raster.draw(self, draws, uniforms or {}, per_program)
 
     def draw_opaque(self) -> None:
         """Draw every opaque draw into the currently bound G-buffer."""
-        self.renderer.draw_list(self, [d for d in self.draws if not d.transparent], transparent=False)
+        self.raster.hardware.draw(self, [d for d in self.draws if not d.transparent], transparent=False)
 
 
 class FrameResult:

@@ -35,7 +35,9 @@ from ..errors import ConfigError
 from ..gpu_counters import CounterBlock
 from ..gpu_timer import Timestamps
 from ..limits import require_bytes
-from ..shaders import SourceMap, set_uniform, set_uniforms
+from ..pipeline.device import Device
+from ..shaders import set_uniform, set_uniforms
+from .material_program import apply_material, material_program
 from .material_support import compute_material
 
 # state words of raster/state.glsl.j2, in order
@@ -130,9 +132,9 @@ def _grid(items: int, group: int = _GROUP) -> tuple[int, int, int]:
 class ComputeRasterizer:
     """Draws transparent draws through compute kernels into the current method's insertion code."""
 
-    def __init__(self, renderer):
-        self.renderer = renderer
-        self.ctx = renderer.ctx
+    def __init__(self, device: Device):
+        self.device = device
+        self.ctx = device.ctx
         self._state: CounterBlock | None = None  # queue cursors, indirect dispatch arguments, frame totals
         self._verts = self._large = self._jobs = None
         self._buckets = self._order = self._keys = None
@@ -152,14 +154,9 @@ class ComputeRasterizer:
         self._materials: dict[int, tuple] = {}  # id(material) -> (material, ComputeMaterial)
         # GUACA_RASTER_STAGES=1: GPU time per stage in stats (reading it waits for the GPU: profiling only)
         self._stages = Timestamps() if env.raster_stages() else None
-        self._program_sets: dict[tuple, tuple] = {}  # program key -> the four kernels (built once)
         self._adjacency_bytes: dict[int, int] = {}  # antialiasing.merge: the neighbour buffers a frame used
-        self._kernels: dict[tuple, object] = {}  # (template, tuning) -> args, order and scan kernels
 
     # ------------------------------------------------------------------ programs
-    def _common(self, draw) -> dict:
-        return {"material_uniforms": "\n".join(u.glsl_decl() for u in draw.material.uniforms.values())}
-
     def _raster_vars(self) -> dict:
         return {
             "raster_state_words": STATE_WORDS,
@@ -183,92 +180,44 @@ class ComputeRasterizer:
         """Why `draw`'s material cannot run in the compute host (None: it can)."""
         return self._compute_material(draw.material).problem
 
-    def _programs(self, draw):
-        """(vertex, setup, bin, fine) kernels for the draw's material and the current method, compiled once."""
-        mat, method = draw.material, self.renderer.method
+    def _programs(self, method, draw):
+        """(vertex, setup, bin, fine) kernels for the draw's material and `method`, compiled once."""
+        mat = draw.material
         cm = self._compute_material(mat)
         if cm.problem:
             raise ConfigError(cm.problem, mat.path, None, "transparency.raster")
-        mvars = method.template_vars()
-        label = f"material '{mat.name}'"
-        crease_deg = self.renderer.config.antialiasing["merge_crease_deg"]  # antialiasing.merge's
-        key = (
-            "compute_raster",
-            str(mat.path),
-            method.id,
-            tuple(sorted((k, str(v)) for k, v in mvars.items())),
-            self.tile,
-            self.small_area,
-            self.small_fragments,
-            self.medium_area,
-            self.renderer.aa_merge,
-            crease_deg,
+        aa = self.device.antialiasing
+        fragment = dict(
+            self._raster_vars(),
+            **method.template_vars(),
+            compute_raster=True,
+            aa_merge=aa.merge,  # antialiasing.merge: adjacent (setup stage)
+            aa_merge_crease_cos=f"{math.cos(math.radians(aa.merge_crease_deg)):.9f}",
+            frag_xy="gua_frag_xy",
+            tc_derivatives=cm.tc_derivatives,
+            method_extensions=method.extensions(),
+            method_fragment_template=method.fragment_template(),
         )
-        hit = self._program_sets.get(key)
-        if hit is not None:
-            return hit
-        shaders = self.renderer.shaders
-        progs = []
-        for stage, template in (
-            ("vertex", "raster/vertex.comp.j2"),
-            ("setup", "raster/setup.comp.j2"),
-            ("bin", "raster/bin.comp.j2"),
-            ("fine", "raster/fine.comp.j2"),
-        ):
-            smap = SourceMap()
-            if stage == "vertex":
-                variables = dict(
-                    self._common(draw),
-                    displacement_methods="".join(
-                        smap.insert(m.source, m.file, m.first_line, f"{label} method '{m.name}'")
-                        for m in mat.methods.get("displacement", [])
-                    ),
-                    displacement_calls=[m.name for m in mat.methods.get("displacement", [])],
-                )
-            else:
-                variables = dict(
-                    self._common(draw),
-                    **self._raster_vars(),
-                    **mvars,
-                    compute_raster=True,
-                    aa_merge=self.renderer.aa_merge,  # antialiasing.merge: adjacent (setup stage)
-                    aa_merge_crease_cos=f"{math.cos(math.radians(crease_deg)):.9f}",
-                    raster_stage=stage,  # the triangle record's layout is chosen per kernel
-                    frag_xy="gua_frag_xy",
-                    tc_derivatives=cm.tc_derivatives,
-                    visibility_methods="".join(
-                        smap.insert(cm.sources[m.name], m.file, m.first_line, f"{label} method '{m.name}'")
-                        for m in mat.methods.get("visibility", [])
-                    ),
-                    visibility_calls=[m.name for m in mat.methods.get("visibility", [])],
-                    method_extensions=method.extensions(),
-                    method_fragment_template=method.fragment_template(),
-                )
-            progs.append(
-                shaders.program(
-                    (*key, stage),
-                    {"compute_shader": (template, variables)},
-                    smap,
-                    label=f"{label} ({mat.path}), compute raster {stage}",
-                )
+        kernels = [
+            material_program(
+                self.device.programs,
+                mat,
+                {"compute_shader": ("raster/vertex.comp.j2", "displacement", {})},
+                ", compute raster vertex",
             )
-        self._program_sets[key] = tuple(progs)
-        return self._program_sets[key]
+        ]
+        for stage in ("setup", "bin", "fine"):  # the triangle record's layout is chosen per kernel
+            skeleton = {
+                "compute_shader": (f"raster/{stage}.comp.j2", "visibility", {**fragment, "raster_stage": stage})
+            }
+            kernels.append(
+                material_program(self.device.programs, mat, skeleton, f", compute raster {stage}", cm.sources)
+            )
+        return tuple(kernels)
 
     def _kernel(self, template: str, **variables):
         """A material-independent kernel of the rasterizer, compiled once per template, variables and tuning."""
-        key = (
-            template,
-            tuple(sorted(variables.items())),
-            self.tile,
-            self.small_area,
-            self.small_fragments,
-            self.medium_area,
-        )
-        prog = self._kernels.get(key)
-        if prog is None:
-            prog = self._kernels[key] = self.renderer.shaders.compute(template, **self._raster_vars(), **variables)
-        return prog
+        return self.device.programs.compute(template, **self._raster_vars(), **variables)
 
     # ------------------------------------------------------------------ storage
     def _begin(self, frame, draws) -> None:
@@ -279,7 +228,7 @@ class ComputeRasterizer:
         vertices = max(len(d.mesh.positions) for d in draws)
         large = self._want.pop("large", 0) or max(self.large_capacity, 1024, triangles // 8)
         jobs = self._want.pop("jobs", 0) or max(self.job_capacity, 4096, 4 * tiles)
-        limits = self.renderer.caps.limits
+        limits = self.device.caps.limits
         if limits is not None:  # the storage rule: queues past it drop (counted, warned), never overflow memory
             large = max(1, min(large, limits.elements(4)))
             jobs = max(1, min(jobs, limits.elements(8)))
@@ -307,11 +256,11 @@ class ComputeRasterizer:
 
     def _require_vertices(self, vertices: int) -> None:
         """Transformed vertices and the triangle order have no overflow path: they must fit the storage rule."""
-        require_bytes(self.renderer.caps.limits, vertices * VERTEX_RECORD_BYTES, "transparency.raster", _TOO_BIG)
+        require_bytes(self.device.caps.limits, vertices * VERTEX_RECORD_BYTES, "transparency.raster", _TOO_BIG)
 
     def _fit_order(self, triangles: int) -> None:
         """An order list for draws of up to `triangles` triangles."""
-        require_bytes(self.renderer.caps.limits, triangles * 4, "transparency.raster", _TOO_BIG)  # each of the two
+        require_bytes(self.device.caps.limits, triangles * 4, "transparency.raster", _TOO_BIG)  # each of the two
         if triangles > self.order_capacity:
             self._release(self._order)
             self._release(self._keys)
@@ -324,20 +273,21 @@ class ComputeRasterizer:
         w = _bound_corners(draw.mesh) @ (frame.projection @ frame.view @ draw.world)[3]
         return float(max(w.min(), 0.0)), float(max(w.max(), 0.0))
 
-    def _front_to_back(self) -> bool:
+    @staticmethod
+    def _front_to_back(method) -> bool:
         """Whether depth runs nearest first: with early termination, whose saturation depth then culls.
 
         (Back to front with early termination, measured on the dragons, saved 0.2 ms at 1 sample and
         1.6 ms at 4, but it then culls nothing while the composite still stops at the threshold: what
         the threshold hides would go uncounted. benchmarks/results/h100/aa_variants/README.md.)
         """
-        return bool(getattr(self.renderer.method, "early_termination", False))
+        return bool(getattr(method, "early_termination", False))
 
     def _order_constants(self, frame, order_kernels, span) -> None:
         """The order kernels' uniforms that hold for every draw of a call."""
-        order = self.renderer.method.raster_order()
+        order = frame.method.raster_order()
         values = (
-            ("gua_back_to_front", not self._front_to_back()),
+            ("gua_back_to_front", not self._front_to_back(frame.method)),
             ("gua_mesh_order", order == "mesh"),
             ("gua_tile_order", order == "tile"),
             ("gua_resolution", (frame.width, frame.height)),
@@ -378,10 +328,10 @@ class ComputeRasterizer:
         if self._fresh or self._frame is not frame:
             self._begin(frame, draws)
             self._fresh, self._frame = False, frame
-        ctx, r = self.ctx, self.renderer
+        ctx, device = self.ctx, self.device
         gbuffer = frame.resources["gbuffer"]
-        gbuffer["depth"].use(location=DEPTH_UNIT)
-        samples = sample_uniforms(r.sample_positions)
+        gbuffer.depth.use(location=DEPTH_UNIT)
+        samples = sample_uniforms(device.antialiasing.positions)
         # the queue bookkeeping after the setup (1) and bin (2) stages; the order stage's bucket clear
         # (0), count (1) and scatter (3), then its prefix sum
         args = {m: self._kernel("raster/args.comp.j2", args_mode=m) for m in (1, 2)}
@@ -396,7 +346,7 @@ class ComputeRasterizer:
         # draws of its material, so only the per-draw values change between them)
         call_values = {
             **uniforms,
-            "gua_any_opaque": gbuffer["has_opaque"],  # the geometry pass's own answer
+            "gua_any_opaque": gbuffer.has_opaque,  # the geometry pass's own answer
             **samples,  # coverage at the hardware's sample points
             "gua_large_capacity": self.large_capacity,
             "gua_job_capacity": self.job_capacity,
@@ -406,7 +356,7 @@ class ComputeRasterizer:
         last = None  # (kernels, material instance) whose uniforms and textures the draw before set
         # draws run one after the other: take them in depth order too (see _order_pass)
         ranges = {d.index: self._depth_range(frame, d) for d in draws}
-        if self._front_to_back():
+        if self._front_to_back(frame.method):
             draws = sorted(draws, key=lambda d: ranges[d.index][0])
         else:
             draws = sorted(draws, key=lambda d: -ranges[d.index][1])
@@ -424,13 +374,13 @@ class ComputeRasterizer:
                 self._verts.bind_to_storage_buffer(8)
             kernels = programs.get(id(d.material))
             if kernels is None:  # per material, for this call (the method's state is fixed)
-                kernels = programs[id(d.material)] = self._programs(d)
+                kernels = programs[id(d.material)] = self._programs(frame.method, d)
             vert, setup, binner, fine = kernels
-            vbo, ibo = r.meshes.buffers(d.mesh)
+            vbo, ibo = device.meshes.buffers(d.mesh)
             vbo.bind_to_storage_buffer(9)
             ibo.bind_to_storage_buffer(10)
-            if r.aa_merge:  # each triangle's edge neighbours (raster/adjacency.py), built once per mesh
-                adjacency = r.meshes.adjacency(d.mesh, r.caps.limits)
+            if device.antialiasing.merge:  # each triangle's edge neighbours (raster/adjacency.py), built once per mesh
+                adjacency = device.meshes.adjacency(d.mesh, device.caps.limits)
                 adjacency.bind_to_storage_buffer(7)
                 self._adjacency_bytes[adjacency.glo] = adjacency.size
             for prog in kernels:
@@ -445,7 +395,9 @@ class ComputeRasterizer:
             d.write_transform(vert)
             set_uniform(vert, "gua_vertex_count", len(d.mesh.positions))
             if last is None or last[0] is not kernels or last[1] is not d.values:
-                r.apply_material(d, kernels)  # (the same kernels and instance as the draw before are all set)
+                apply_material(
+                    device.textures, d, kernels
+                )  # (the same kernels and instance as the draw before are all set)
                 last = kernels, d.values
             self._mark("between_draws")  # from the last stage (or the set-up) to this draw's start
             vert.run(*_grid(len(d.mesh.positions)))
@@ -487,7 +439,7 @@ class ComputeRasterizer:
         if frame.late_counters:
             self._state.stage()
         frame.stats.setdefault("raster", {})["compute"] = {
-            "order": self.renderer.method.raster_order(),
+            "order": frame.method.raster_order(),
             "triangles": self._triangles,
             "large_triangles": c["large_total"],
             "visible_triangles": c["visible_total"],
@@ -562,5 +514,3 @@ class ComputeRasterizer:
         self._buckets = self._order = self._keys = None
         self.vertex_capacity = self.large_capacity = self.job_capacity = self.order_capacity = 0
         self._fresh, self._frame = True, None
-        self._kernels.clear()  # the programs themselves belong to the renderer's shader library
-        self._program_sets.clear()

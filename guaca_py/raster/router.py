@@ -3,15 +3,18 @@
 from __future__ import annotations
 
 from ..errors import ConfigError
+from ..pipeline.device import Device
 from .choice import auto_choice, auto_rule, compute_kernels_draw, mean_projected_area
 from .compute_raster import ComputeRasterizer
+from .hardware import HardwareRasterizer
 
 
 class RasterRouter:
     """Per frame and draw: which rasterizer makes the transparent fragments, and why (frame.stats['raster'])."""
 
-    def __init__(self, renderer):
-        self.renderer = renderer
+    def __init__(self, device: Device):
+        self.device = device
+        self.hardware = HardwareRasterizer(device)
         self._compute: ComputeRasterizer | None = None
         self._stats_of = None  # the frame (and pass) whose stats the draws add to
 
@@ -19,22 +22,24 @@ class RasterRouter:
     def compute(self) -> ComputeRasterizer:
         """The compute rasterizer (buffers are made on first use)."""
         if self._compute is None:
-            self._compute = ComputeRasterizer(self.renderer)
+            self._compute = ComputeRasterizer(self.device)
         return self._compute
 
-    def setting(self) -> str:
+    @staticmethod
+    def setting(method) -> str:
         """The method's `raster` setting: hardware, compute or auto."""
-        return self.renderer.method.settings.get("raster", "hardware")
+        return method.settings.get("raster", "hardware")
 
     def choose(self, frame, draw) -> tuple[str, str]:
         """(rasterizer, reason) for one transparent draw; `raster: compute` errors where it cannot run."""
-        setting = self.setting()
+        method = frame.method
+        setting = self.setting(method)
         if setting == "hardware":
             return "hardware", "raster: hardware"
-        refusal = self.renderer.method.compute_raster_refusal()
+        refusal = method.compute_raster_refusal()
         if refusal:  # raster: compute was refused when the method was set
-            return "hardware", f"method '{self.renderer.method.id}': {refusal}"
-        if not compute_kernels_draw(setting, self.renderer.caps):  # auto on a software rasterizer
+            return "hardware", f"method '{method.id}': {refusal}"
+        if not compute_kernels_draw(setting, self.device.caps):  # auto on a software rasterizer
             return auto_choice(True, 0.0)
         problem = self.compute.material_problem(draw)
         if problem:
@@ -43,14 +48,14 @@ class RasterRouter:
             return "hardware", problem
         if setting == "compute":
             return "compute", "raster: compute"
-        if self.renderer.method.auto_compute_reason:
-            return "compute", self.renderer.method.auto_compute_reason
+        if method.auto_compute_reason:
+            return "compute", method.auto_compute_reason
         area = mean_projected_area(draw.mesh, draw.world, frame.projection @ frame.view, frame.width, frame.height)
         return auto_choice(False, area)
 
     def draw(self, frame, draws, uniforms: dict, per_program=None) -> None:
         """Draw transparent `draws`: compute ones through the kernels, the rest through the fragment pipeline."""
-        setting = self.setting()
+        setting = self.setting(frame.method)
         if self._stats_of is not frame:  # first draw of this frame's pass (a re-render starts afresh)
             frame.stats["raster"] = {"setting": setting}
             self._stats_of = frame
@@ -68,7 +73,7 @@ class RasterRouter:
         if compute:
             self.compute.draw(frame, compute, uniforms, per_program)
         if hardware:
-            self.renderer.draw_list(frame, hardware, transparent=True, uniforms=uniforms, per_program=per_program)
+            self.hardware.draw(frame, hardware, transparent=True, uniforms=uniforms, per_program=per_program)
 
     def finish(self, frame) -> bool:
         """The compute rasterizer's totals and memory; True asks for the frame again (its storage grew)."""

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import jinja2
+import numpy as np
 
 from ..errors import ShaderCompileError
 from ..resources import builtin_dir
@@ -96,10 +97,16 @@ class ShaderLibrary:
         """Render one template to GLSL text."""
         return self.env.get_template(template).render(**variables)
 
-    def program(self, key, stages: dict[str, tuple[str, dict]], smap: SourceMap | None = None, label: str = "program"):
-        """Compile (once per key) a program from {stage: (template, variables)}; stage names are moderngl's."""
-        if key in self._programs:
-            return self._programs[key]
+    def program(self, stages: dict[str, tuple[str, dict]], smap: SourceMap | None = None, label: str = "program"):
+        """Compile (once) a program from {stage: (template, variables)}; stage names are moderngl's.
+
+        The cache key is derived from the stages' templates and variables (material code reaches
+        the templates as variables, so it is part of the key): callers never build keys by hand.
+        """
+        key = program_key(stages)
+        prog = self._programs.get(key)
+        if prog is not None:
+            return prog
         smap = smap or SourceMap()
         sources = {stage: self.render(tpl, **vars_) for stage, (tpl, vars_) in stages.items()}
         try:
@@ -122,9 +129,27 @@ class ShaderLibrary:
         self._programs.clear()
 
     def compute(self, template: str, **variables):
-        """Compile (once per template+variables) a compute shader."""
-        key = (template, tuple(sorted((k, str(v)) for k, v in variables.items())))
-        return self.program(key, {"compute_shader": (template, variables)}, label=template)
+        """Compile (once per template and variables) a compute shader."""
+        return self.program({"compute_shader": (template, variables)}, label=template)
+
+
+def _freeze(value):
+    """A hashable form of a template variable (lists and dicts become tuples)."""
+    if isinstance(value, dict):
+        return tuple(sorted((k, _freeze(v)) for k, v in value.items()))
+    if isinstance(value, (list, tuple)):
+        return tuple(_freeze(v) for v in value)
+    return value
+
+
+def program_key(stages: dict[str, tuple[str, dict]]) -> tuple:
+    """The cache key of a program: each stage's template and its variables, frozen."""
+    return tuple(sorted((stage, tpl, _freeze(vars_)) for stage, (tpl, vars_) in stages.items()))
+
+
+def mat_bytes(m) -> bytes:
+    """A float64 row-major numpy matrix as the column-major float32 bytes GL expects."""
+    return np.ascontiguousarray(np.asarray(m, dtype=np.float32).T).tobytes()
 
 
 def uniform_names(prog) -> frozenset[str]:

@@ -32,7 +32,6 @@ class Hud:
         self.ctx = ctx
         self.shaders = ShaderLibrary(ctx)
         self.prog = self.shaders.program(
-            ("overlay",),
             {
                 "vertex_shader": ("composite/fullscreen.vert.j2", {}),
                 "fragment_shader": ("present/overlay.frag.j2", {}),

@@ -1,0 +1,73 @@
+"""A material composed into a shader skeleton, and its uniform values set: one place for every skeleton.
+
+The hardware geometry programs and the compute rasterizer's kernels both take a material's
+displacement and visibility methods, its uniform declarations and its textures through here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+
+import numpy as np
+
+from ..shaders import ShaderLibrary, SourceMap, mat_bytes, set_uniforms
+
+TEXTURE_UNIT_BASE = 8  # material textures take units from here up (units below are the passes' inputs)
+
+
+def material_vars(material, smap: SourceMap, stage: str | None, sources: Mapping[str, str] | None = None) -> dict:
+    """Template variables of `material` for a skeleton stage that runs its `stage` methods (None: none).
+
+    The methods' code is bracketed for `smap` so compiler messages cite the material's files;
+    `sources` replaces a method's code by name (the compute rasterizer's rewritten visibility code).
+    """
+    out = {"material_uniforms": "\n".join(u.glsl_decl() for u in material.uniforms.values())}
+    if stage is None:
+        return out
+    label = f"material '{material.name}'"
+    methods = material.methods.get(stage, [])
+    out[f"{stage}_methods"] = "".join(
+        smap.insert((sources or {}).get(m.name, m.source), m.file, m.first_line, f"{label} method '{m.name}'")
+        for m in methods
+    )
+    out[f"{stage}_calls"] = [m.name for m in methods]
+    return out
+
+
+def material_program(
+    programs: ShaderLibrary,
+    material,
+    skeleton: Mapping[str, tuple[str, str | None, dict]],
+    what: str = "",
+    sources: Mapping[str, str] | None = None,
+):
+    """Compile (once) `material` composed into `skeleton`: {GL stage: (template, material stage, variables)}."""
+    smap = SourceMap()
+    stages = {
+        gl_stage: (template, {**variables, **material_vars(material, smap, mstage, sources)})
+        for gl_stage, (template, mstage, variables) in skeleton.items()
+    }
+    return programs.program(stages, smap, label=f"material '{material.name}' ({material.path}){what}")
+
+
+def apply_material(textures, draw, programs: Iterable) -> None:
+    """Bind the draw's material textures to their units and set its uniform values on `programs`.
+
+    Every sampler gets its own unit whether or not a given program reads it, so the values hold
+    for every program of the material (the compute rasterizer sets them on four kernels); the
+    values are converted once for all of them.
+    """
+    unit = TEXTURE_UNIT_BASE
+    values = []
+    for name, spec in draw.material.uniforms.items():
+        value = draw.values[name]
+        if spec.type == "sampler2D":
+            textures.get(value, draw.material.path.parent).use(location=unit)
+            value, unit = unit, unit + 1
+        elif spec.type == "mat4":
+            value = mat_bytes(np.asarray(value, dtype=np.float64).reshape(4, 4))
+        elif isinstance(value, list):
+            value = tuple(value)
+        values.append((name, value))
+    for prog in programs:
+        set_uniforms(prog, values)
