@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import json
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import ConfigError
+from . import glsl
 
 #: sampler2D uniforms a material may declare: each takes its own texture unit, from 8 up to the
 #: light grid's unit 31 (renderer.apply_material, passes/light_culling.py)
@@ -19,13 +19,6 @@ UNIFORM_SIZES = {"float": 1, "int": 1, "vec2": 2, "vec3": 3, "vec4": 4, "mat4": 
 STAGES = ("displacement", "visibility")
 _TOP_KEYS = {"name", "description", "uniforms", "displacement", "visibility", "transparent"}
 _SPEC_KEYS = {"type", "default", "range"}
-_ALPHA_WRITE = re.compile(r"\bgua_alpha\s*([-+*/]?=)(?!=)\s*([^;]*);")
-_IDENT = re.compile(r"^[A-Za-z_]\w*$")
-_LITERAL_ONE = re.compile(r"^\(?\s*1(\.0*)?f?\s*\)?$")
-# gua_alpha handed to a function (an `inout`/`out` parameter may write it) or touched by ++/--
-_ALPHA_UNSURE = re.compile(r"[(,]\s*gua_alpha\s*[,)]|\+\+\s*gua_alpha|gua_alpha\s*(\+\+|--)|--\s*gua_alpha")
-# the preprocessor can write gua_alpha under another name
-_PREPROCESSOR = re.compile(r"^\s*#\s*(define|if|ifdef|ifndef|include)\b", re.M)
 
 
 @dataclass
@@ -51,6 +44,10 @@ class Method:
     source: str
     file: Path  # where the source text lives (JSON or .glsl)
     first_line: int  # line in `file` where the source starts
+    code: str = field(init=False, repr=False)  # the source without comments, what analysis searches
+
+    def __post_init__(self):
+        self.code = glsl.strip_comments(self.source)
 
 
 @dataclass
@@ -68,9 +65,8 @@ class MaterialDescription:
 
     def __post_init__(self):
         for m in self.methods.get("displacement", []) + self.methods.get("visibility", []):
-            code = _strip_comments(m.source)
-            self._alpha_writes += _ALPHA_WRITE.findall(code)
-            self._unsure = self._unsure or bool(_ALPHA_UNSURE.search(code) or _PREPROCESSOR.search(code))
+            self._alpha_writes += glsl.alpha_writes(m.code)
+            self._unsure = self._unsure or glsl.alpha_unreadable(m.code)
 
     def is_transparent(self, values: dict) -> bool:
         """Whether an instance with these uniform values can produce alpha < 1.
@@ -87,12 +83,11 @@ class MaterialDescription:
         if self._unsure:
             return True
         for op, rhs in self._alpha_writes:
-            rhs = rhs.strip()
-            if op == "=" and _LITERAL_ONE.match(rhs):
+            if op == "=" and glsl.is_literal_one(rhs):
                 continue
             if (
                 op in ("=", "*=")
-                and _IDENT.match(rhs)
+                and glsl.is_identifier(rhs)
                 and rhs in self.uniforms
                 and self.uniforms[rhs].type == "float"
                 and float(values.get(rhs, 1.0)) >= 1.0
@@ -126,11 +121,6 @@ def _numeric_text(text: str) -> bool:
     except ValueError:
         return False
     return True
-
-
-def _strip_comments(src: str) -> str:
-    src = re.sub(r"/\*.*?\*/", "", src, flags=re.S)
-    return re.sub(r"//[^\n]*", "", src)
 
 
 def check_value(typ: str, value, file, line, key):
@@ -239,7 +229,7 @@ def _method(entry, stage: str, i: int, path: Path, text: str, search_from: int) 
             'e.g. {"name": "my_method", "source": "void my_method() { gua_alpha = 0.5; }"}',
         )
     name = entry["name"]
-    if not isinstance(name, str) or not _IDENT.match(name):
+    if not isinstance(name, str) or not glsl.is_identifier(name):
         raise ConfigError(f"method name {name!r} is not a GLSL identifier", path, None, key)
     pos = text.find(f'"{name}"', search_from)
     pos = pos if pos >= 0 else search_from
@@ -259,7 +249,7 @@ def _method(entry, stage: str, i: int, path: Path, text: str, search_from: int) 
         # a list of lines starts on the line after '"source": ['
         first = _line_of(text, _source_start(text, spos))
         file = path
-    if not re.search(rf"\bvoid\s+{name}\s*\(\s*\)", source):
+    if not glsl.defines_void_function(source, name):
         raise ConfigError(
             f"method source does not define 'void {name}()'",
             file,
@@ -316,7 +306,7 @@ def load_material(path: str | Path) -> MaterialDescription:
     uniforms: dict[str, UniformSpec] = {}
     for uname, spec in raw_uniforms.items():
         line = _line_of(text, max(text.find(f'"{uname}"'), 0))
-        if not _IDENT.match(uname) or uname.startswith("gua_"):
+        if not glsl.is_identifier(uname) or uname.startswith("gua_"):
             raise ConfigError(
                 f"uniform name {uname!r} is not allowed",
                 path,
