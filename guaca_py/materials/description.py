@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigError
+from ..numeric import Range, number_hint
 from . import glsl
 
 #: sampler2D uniforms a material may declare: each takes its own texture unit, from 8 up to the
@@ -115,14 +116,6 @@ class MaterialDescription:
         return out
 
 
-def _numeric_text(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
-
-
 def check_value(typ: str, value, file, line, key):
     """Validate one uniform value against its type; returns the normalized value."""
     size = UNIFORM_SIZES[typ]
@@ -132,12 +125,9 @@ def check_value(typ: str, value, file, line, key):
         return value
     if typ in ("float", "int"):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            hint = "write a plain number"
-            if isinstance(value, str) and _numeric_text(value):
-                hint = (
-                    f"YAML reads {value!r} as text: write it with a dot and a signed exponent, e.g. {float(value):.1e}"
-                )
-            raise ConfigError(f"expected {typ}, got {type(value).__name__} {value!r}", file, line, key, hint)
+            raise ConfigError(
+                f"expected {typ}, got {type(value).__name__} {value!r}", file, line, key, number_hint(value)
+            )
         if typ == "int" and not float(value).is_integer():
             raise ConfigError(f"expected int, got {value!r}", file, line, key)
         return int(value) if typ == "int" else float(value)
@@ -147,20 +137,15 @@ def check_value(typ: str, value, file, line, key):
     return [float(v) for v in arr]
 
 
-def _bound_text(r: tuple[float | None, float | None]) -> str:
-    lo, hi = r
-    return f"[{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}]"
-
-
 def check_range(spec: UniformSpec, value, file, line, declared_by: str = "the material"):
     """`value` (already type-checked) when every component lies in the uniform's declared range."""
     if spec.range is None:
         return value
-    lo, hi = spec.range
+    bounds = Range(*spec.range)
     for v in value if isinstance(value, list) else [value]:
-        if (lo is not None and v < lo) or (hi is not None and v > hi):
+        if not bounds.contains(v):
             raise ConfigError(
-                f"{value!r} is outside {_bound_text(spec.range)}, the range {declared_by} declares for it",
+                f"{value!r} is outside {bounds}, the range {declared_by} declares for it",
                 file,
                 line,
                 spec.name,

@@ -71,6 +71,7 @@ import numpy as np
 import yaml
 
 from ..errors import ConfigError
+from ..numeric import Range, number_hint
 from ..yaml_source import compose, nesting_error
 from .graph import LIGHT_TYPES, Camera, Light, MaterialInstance, MeshData, Node, Scene, Transform
 from .mesh_io import load_mesh_file
@@ -118,19 +119,6 @@ def _kind(node: yaml.Node) -> str:
         return f"a list of {len(node.value)}"
     short = node.tag.rsplit(":", 1)[-1]
     return "nothing (null)" if short == "null" else f"{short} {node.value!r}"
-
-
-def number_hint(node: yaml.Node) -> str:
-    """How to write a number; YAML 1.1 reads exponents without a dot and a sign ('1e30') as text."""
-    text = node.value if isinstance(node, yaml.ScalarNode) else None
-    if isinstance(text, str):
-        try:
-            value = float(text)
-        except ValueError:
-            value = None
-        if value is not None:
-            return f"YAML reads {text!r} as text: write it with a dot and a signed exponent, e.g. {value:.1e}"
-    return "write a plain number like 1.5"
 
 
 class _Reader:
@@ -185,15 +173,14 @@ class _Reader:
         """A finite number, optionally within [lo, hi] (or (lo, hi] with lo_open)."""
         node = at.node
         if not (isinstance(node, yaml.ScalarNode) and node.tag in (_TAG + "int", _TAG + "float")):
-            raise self.error(at, f"expected a number, got {_kind(node)}", number_hint(node))
+            scalar = node.value if isinstance(node, yaml.ScalarNode) else None
+            raise self.error(at, f"expected a number, got {_kind(node)}", number_hint(scalar))
         value = float(self.plain(node))
         if not math.isfinite(value):
             raise self.error(at, f"expected a finite number, got {node.value}")
-        below = lo is not None and (value <= lo if lo_open else value < lo)
-        if below or (hi is not None and value > hi):
-            lo_txt = "-inf" if lo is None else f"{lo:g}"
-            rng = f"{'(' if lo_open else '['}{lo_txt}, {'inf' if hi is None else f'{hi:g}'}]"
-            raise self.error(at, f"{value:g} is out of range {rng}")
+        bounds = Range(lo, hi, lo_open)
+        if not bounds.contains(value):
+            raise self.error(at, f"{value:g} is out of range {bounds}")
         return value
 
     def vector(self, at: _At, n: int = 3, non_negative: bool = False) -> tuple[float, ...]:
