@@ -10,6 +10,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..numeric import Range, number_hint
+from ..yaml_source import read_text
 from . import glsl
 
 #: sampler2D uniforms a material may declare: each takes its own texture unit, from 8 up to the
@@ -170,22 +171,6 @@ def _parse_range(raw, typ: str, path: Path, line: int, uname: str) -> tuple[floa
     return (None if raw[0] is None else float(raw[0]), None if raw[1] is None else float(raw[1]))
 
 
-def _read_text(p: Path, cite: Path, line: int | None, key: str | None) -> str:
-    """A UTF-8 text file; other bytes are an error citing the byte's line."""
-    data = p.read_bytes()
-    try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        bad_line = data.count(b"\n", 0, exc.start) + 1
-        raise ConfigError(
-            f"{p.name} is not UTF-8 text (byte 0x{data[exc.start]:02x} on line {bad_line})",
-            cite,
-            line if cite != p else bad_line,
-            key,
-            "save the file as UTF-8",
-        ) from None
-
-
 def _key_line(text: str, key: str) -> int | None:
     pos = text.find(f'"{key}"')
     return _line_of(text, pos) if pos >= 0 else None
@@ -222,7 +207,7 @@ def _method(entry, stage: str, i: int, path: Path, text: str, search_from: int) 
         src_path = (path.parent / entry["file"]).resolve()
         if not src_path.is_file():
             raise ConfigError(f"method source file not found: {src_path}", path, _line_of(text, pos), key)
-        source, file, first = _read_text(src_path, path, _line_of(text, pos), key), src_path, 1
+        source, file, first = read_text(src_path, path, _line_of(text, pos), key), src_path, 1
     else:
         src = entry["source"]
         lines_ok = isinstance(src, list) and all(isinstance(x, str) for x in src)
@@ -250,7 +235,7 @@ def load_material(path: str | Path) -> MaterialDescription:
     path = Path(path)
     if not path.is_file():
         raise ConfigError("material file not found", path)
-    text = _read_text(path, path, None, None)
+    text = read_text(path)
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:

@@ -72,7 +72,7 @@ import yaml
 
 from ..errors import ConfigError
 from ..numeric import Range, number_hint
-from ..yaml_source import compose, nesting_error
+from ..yaml_source import compose, nesting_error, read_text
 from .graph import LIGHT_TYPES, Camera, Light, MaterialInstance, MeshData, Node, Scene, Transform
 from .mesh_io import load_mesh_file
 from .primitives import PRIMITIVE_KINDS, make_primitive
@@ -504,11 +504,7 @@ def load_scene(path: str | Path) -> Scene:
     p = Path(path)
     if not p.is_file():
         raise ConfigError(f"scene file not found: {p}", p, hint="check the path")
-    try:
-        text = p.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise ConfigError(f"scene file is not UTF-8 text ({exc.reason})", p) from None
-    scene = load_scene_text(text, str(p), p.parent)
+    scene = load_scene_text(read_text(p), str(p), p.parent)
     scene.source = p.resolve()
     return scene
 
