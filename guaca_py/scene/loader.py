@@ -73,7 +73,7 @@ import yaml
 from ..errors import ConfigError
 from ..numeric import Range, number_hint
 from ..yaml_source import compose, nesting_error, read_text
-from .graph import LIGHT_TYPES, Camera, Light, MaterialInstance, MeshData, Node, Scene, Transform
+from .graph import LIGHT_TYPES, MAX_WORLD, Camera, Light, MaterialInstance, MeshData, Node, Scene, Transform
 from .mesh_io import load_mesh_file
 from .primitives import PRIMITIVE_KINDS, make_primitive
 
@@ -90,7 +90,6 @@ LIGHT_KEYS = {
 TEXTURE_SUFFIXES = (".png", ".jpg", ".jpeg")
 MAX_SCENE_DEPTH = 100  # levels of children; the loader, the graph walk and the draw list recurse per level
 DEPTH_BITS = 24  # the G-buffer depth and gl_FragCoord.z both resolve 2**-24 steps near 1
-MAX_WORLD = 1.0e7  # as pipeline/drawlist.py: beyond it float32 positions and llvmpipe's clipper fail
 
 _TAG = "tag:yaml.org,2002:"
 
