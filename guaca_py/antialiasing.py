@@ -12,6 +12,7 @@ import dataclasses
 import numpy as np
 
 from .errors import ConfigError, UnsupportedMethodError
+from .numeric import Range
 from .pipeline.settings import Setting, resolve_settings
 
 SAMPLE_COUNTS = (1, 2, 4, 8)
@@ -34,7 +35,7 @@ SETTINGS = {
         15.0,
         "merge: adjacent joins two triangles only where the surface bends by at most this many degrees "
         "between them (a merged sample takes the other triangle's shading)",
-        check=lambda v: None if 0 < v <= 180 else f"must be in (0, 180], got {v}",
+        check=Range(0, 180, lo_open=True).problem,
     ),
 }
 # Every node packs its mask into the free upper 16 bits of payload word 6 (common/payload_pack):

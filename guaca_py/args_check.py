@@ -5,12 +5,14 @@ from __future__ import annotations
 from pathlib import Path
 
 from .errors import ConfigError
+from .numeric import Range
 from .output import IMAGE_SUFFIXES, check_writable
 
 
 def _at_least(value: int | None, lo: int, option: str, hint: str) -> None:
-    if value is not None and value < lo:
-        raise ConfigError(f"must be >= {lo}, got {value}", key=option, hint=hint)
+    problem = None if value is None else Range(lo).problem(value)
+    if problem:
+        raise ConfigError(problem, key=option, hint=hint)
 
 
 def check_method_option(method: str | None) -> None:

@@ -21,7 +21,7 @@ from collections import deque
 
 import numpy as np
 
-from .host_state import raw_functions_or_none
+from .gl_state import raw_gl
 
 _MAP_READ, _MAP_PERSISTENT, _MAP_COHERENT, _CLIENT_STORAGE = 0x1, 0x40, 0x80, 0x200
 _SYNC_GPU_COMMANDS_COMPLETE, _SYNC_FLUSH_COMMANDS = 0x9117, 0x1
@@ -131,7 +131,7 @@ class _BufferCopies:
 
 def _fenced_or_none(size: int) -> FencedCopies | None:
     """FencedCopies of `size` bytes on the current context, or None where it cannot have them."""
-    gl = raw_functions_or_none()
+    gl = raw_gl()
     if gl is None:
         return None
     try:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import ctypes
 
-from .host_state import raw_functions_or_none
+from .gl_state import raw_gl
 
 GL_TIME_ELAPSED = 0x88BF
 GL_SAMPLES_PASSED = 0x8914
@@ -37,7 +37,7 @@ class _Query:
     target = GL_TIME_ELAPSED
 
     def __init__(self, ctx):
-        self._gl = raw_functions_or_none()
+        self._gl = raw_gl()
         self._fallback = None
         if self._gl is None:  # no raw entry points: moderngl's query (its name stays until exit)
             self._fallback = ctx.query(time=self.target == GL_TIME_ELAPSED, samples=self.target == GL_SAMPLES_PASSED)
@@ -99,7 +99,7 @@ class Timestamps:
     """
 
     def __init__(self):
-        self._gl = raw_functions_or_none()
+        self._gl = raw_gl()
         self._free: list[int] = []
         self._marks: list[tuple[str, int]] = []
 

@@ -2,10 +2,10 @@
 
 Two jobs, both around every public Renderer call that touches GL:
 
-* `CurrentContext` makes the renderer's context current when another one is (EGL or GLX) and
+* `ContextGuard` makes the renderer's context current when another one is (EGL or GLX) and
   makes the previous one current again afterwards. moderngl's own `with ctx:` releases the
   context on exit instead of restoring the previous one, so the native handles are kept here.
-* `HostGLState` snapshots, with raw glGet* calls, every piece of context state that guaca's
+* `HostGLState` snapshots, with raw glGet* calls (gl_state.py's entry points), every piece of context state that guaca's
   passes (or moderngl underneath them) may change, resets what the passes assume (no scissor,
   no stencil, filled polygons, full colour masks, default depth range and clip control...) and
   restores the snapshot afterwards. moderngl has getters for almost none of this, and a host
@@ -25,9 +25,10 @@ from functools import lru_cache
 
 import moderngl
 
+from .gl_state import BOOL, FLOAT, INT, RawGL, load_library, raw_gl
+
 # ---- GL enums ---------------------------------------------------------------------------
 GL_TEXTURE0 = 0x84C0
-_I, _F, _B = "i", "f", "b"
 
 # Plain capabilities: saved with glIsEnabled; the second element is what guaca's passes expect.
 _CAPS = {
@@ -55,31 +56,31 @@ _DRAW_BUFFERS = 8  # indexed blend / colour-mask state saved for this many draw 
 
 # Scalar state read with glGet*v: enum -> (type, count).
 _SCALARS = {
-    "draw_fbo": (0x8CA6, _I, 1),  # GL_DRAW_FRAMEBUFFER_BINDING
-    "read_fbo": (0x8CAA, _I, 1),  # GL_READ_FRAMEBUFFER_BINDING
-    "renderbuffer": (0x8CA7, _I, 1),
-    "viewport": (0x0BA2, _I, 4),
-    "scissor": (0x0C10, _I, 4),
-    "depth_func": (0x0B74, _I, 1),
-    "depth_mask": (0x0B72, _B, 1),
-    "depth_range": (0x0B70, _F, 2),
-    "clear_color": (0x0C22, _F, 4),
-    "clear_depth": (0x0B73, _F, 1),
-    "clear_stencil": (0x0B91, _I, 1),
-    "blend_color": (0x8005, _F, 4),
-    "cull_face_mode": (0x0B45, _I, 1),
-    "front_face": (0x0B46, _I, 1),
-    "polygon_mode": (0x0B40, _I, 2),
-    "polygon_offset": (0x8038, _F, 1),  # GL_POLYGON_OFFSET_FACTOR
-    "polygon_units": (0x2A00, _F, 1),  # GL_POLYGON_OFFSET_UNITS
-    "provoking_vertex": (0x8E4F, _I, 1),
-    "clip_origin": (0x935C, _I, 1),
-    "clip_depth_mode": (0x935D, _I, 1),
-    "active_texture": (0x84E0, _I, 1),
-    "program": (0x8B8D, _I, 1),
-    "vao": (0x85B5, _I, 1),
-    "pack_alignment": (0x0D05, _I, 1),
-    "unpack_alignment": (0x0CF5, _I, 1),
+    "draw_fbo": (0x8CA6, INT, 1),  # GL_DRAW_FRAMEBUFFER_BINDING
+    "read_fbo": (0x8CAA, INT, 1),  # GL_READ_FRAMEBUFFER_BINDING
+    "renderbuffer": (0x8CA7, INT, 1),
+    "viewport": (0x0BA2, INT, 4),
+    "scissor": (0x0C10, INT, 4),
+    "depth_func": (0x0B74, INT, 1),
+    "depth_mask": (0x0B72, BOOL, 1),
+    "depth_range": (0x0B70, FLOAT, 2),
+    "clear_color": (0x0C22, FLOAT, 4),
+    "clear_depth": (0x0B73, FLOAT, 1),
+    "clear_stencil": (0x0B91, INT, 1),
+    "blend_color": (0x8005, FLOAT, 4),
+    "cull_face_mode": (0x0B45, INT, 1),
+    "front_face": (0x0B46, INT, 1),
+    "polygon_mode": (0x0B40, INT, 2),
+    "polygon_offset": (0x8038, FLOAT, 1),  # GL_POLYGON_OFFSET_FACTOR
+    "polygon_units": (0x2A00, FLOAT, 1),  # GL_POLYGON_OFFSET_UNITS
+    "provoking_vertex": (0x8E4F, INT, 1),
+    "clip_origin": (0x935C, INT, 1),
+    "clip_depth_mode": (0x935D, INT, 1),
+    "active_texture": (0x84E0, INT, 1),
+    "program": (0x8B8D, INT, 1),
+    "vao": (0x85B5, INT, 1),
+    "pack_alignment": (0x0D05, INT, 1),
+    "unpack_alignment": (0x0CF5, INT, 1),
 }
 # Non-indexed buffer binding points: (binding query, target).
 _BUFFER_TARGETS = {
@@ -110,157 +111,6 @@ _TEXTURE_UNITS = 32  # units 0..31 (passes 0-7, materials 8+, light grid 31) plu
 _IMAGE_UNITS = 16
 _IMAGE = (0x8F3A, 0x8F3B, 0x8F3C, 0x8F3D, 0x8F3E, 0x906E)  # name, level, layered, layer, access, format
 
-# ---- raw entry points -----------------------------------------------------------------------
-_u, _i, _f, _d, _p = ctypes.c_uint, ctypes.c_int, ctypes.c_float, ctypes.c_double, ctypes.c_void_p
-_ub, _i64 = ctypes.c_ubyte, ctypes.c_int64
-_SIGNATURES = {
-    # timer queries (guaca_py/gpu_timer.py: moderngl's Query cannot be deleted)
-    "glGenQueries": (None, [_u, _p]),
-    "glDeleteQueries": (None, [_u, _p]),
-    "glBeginQuery": (None, [_u, _u]),
-    "glEndQuery": (None, [_u]),
-    "glGetQueryObjectui64v": (None, [_u, _u, _p]),
-    "glQueryCounter": (None, [_u, _u]),
-    # fenced read-back through a persistently mapped buffer (guaca_py/gpu_counters.py)
-    "glCreateBuffers": (None, [_i, _p]),
-    "glDeleteBuffers": (None, [_i, _p]),
-    "glNamedBufferStorage": (None, [_u, ctypes.c_ssize_t, _p, _u]),
-    "glMapNamedBufferRange": (_p, [_u, ctypes.c_ssize_t, ctypes.c_ssize_t, _u]),
-    "glCopyNamedBufferSubData": (None, [_u, _u, ctypes.c_ssize_t, ctypes.c_ssize_t, ctypes.c_ssize_t]),
-    "glFenceSync": (_p, [_u, _u]),
-    "glClientWaitSync": (_u, [_p, _u, ctypes.c_uint64]),
-    "glDeleteSync": (None, [_p]),
-    "glGetIntegerv": (None, [_u, _p]),
-    "glGetIntegeri_v": (None, [_u, _u, _p]),
-    "glGetInteger64i_v": (None, [_u, _u, _p]),
-    "glGetFloatv": (None, [_u, _p]),
-    "glGetBooleanv": (None, [_u, _p]),
-    "glGetBooleani_v": (None, [_u, _u, _p]),
-    "glIsEnabled": (_ub, [_u]),
-    "glIsEnabledi": (_ub, [_u, _u]),
-    "glEnable": (None, [_u]),
-    "glDisable": (None, [_u]),
-    "glEnablei": (None, [_u, _u]),
-    "glDisablei": (None, [_u, _u]),
-    "glGetError": (_u, []),
-    "glClear": (None, [_u]),
-    "glBindFramebuffer": (None, [_u, _u]),
-    "glBindRenderbuffer": (None, [_u, _u]),
-    "glViewport": (None, [_i, _i, _i, _i]),
-    "glScissor": (None, [_i, _i, _i, _i]),
-    "glDepthFunc": (None, [_u]),
-    "glDepthMask": (None, [_ub]),
-    "glDepthRange": (None, [_d, _d]),
-    "glClearColor": (None, [_f, _f, _f, _f]),
-    "glClearDepth": (None, [_d]),
-    "glClearStencil": (None, [_i]),
-    "glBlendColor": (None, [_f, _f, _f, _f]),
-    "glBlendFuncSeparatei": (None, [_u, _u, _u, _u, _u]),
-    "glBlendEquationSeparatei": (None, [_u, _u, _u]),
-    "glColorMaski": (None, [_u, _ub, _ub, _ub, _ub]),
-    "glCullFace": (None, [_u]),
-    "glFrontFace": (None, [_u]),
-    "glPolygonMode": (None, [_u, _u]),
-    "glPolygonOffset": (None, [_f, _f]),
-    "glProvokingVertex": (None, [_u]),
-    "glClipControl": (None, [_u, _u]),
-    "glActiveTexture": (None, [_u]),
-    "glBindTexture": (None, [_u, _u]),
-    "glBindBuffer": (None, [_u, _u]),
-    "glBindBufferBase": (None, [_u, _u, _u]),
-    "glBindBufferRange": (None, [_u, _u, _u, ctypes.c_ssize_t, ctypes.c_ssize_t]),
-    "glBindImageTexture": (None, [_u, _u, _i, _ub, _i, _u, _u]),
-    "glUseProgram": (None, [_u]),
-    "glBindVertexArray": (None, [_u]),
-    "glPixelStorei": (None, [_u, _i]),
-    "glIsBuffer": (_ub, [_u]),
-    "glIsTexture": (_ub, [_u]),
-    "glIsVertexArray": (_ub, [_u]),
-    "glIsProgram": (_ub, [_u]),
-    "glIsFramebuffer": (_ub, [_u]),
-    "glIsQuery": (_ub, [_u]),
-}
-
-
-class RawGLFunctions:
-    """The GL entry points above as ctypes functions (dispatching to the current context)."""
-
-    def __init__(self):
-        lib = None
-        self.source = "eglGetProcAddress"  # where the entry points come from (the library when it has them)
-        for name in ("libOpenGL.so.0", "libGL.so.1", "libGL.so"):
-            try:
-                lib = ctypes.CDLL(name)
-                self.source = name
-                break
-            except OSError:
-                continue
-        get_proc = None
-        try:
-            egl = ctypes.CDLL("libEGL.so.1")
-            get_proc = egl.eglGetProcAddress
-            get_proc.restype, get_proc.argtypes = ctypes.c_void_p, [ctypes.c_char_p]
-        except (OSError, AttributeError):
-            pass
-        for fname, (res, args) in _SIGNATURES.items():
-            addr = None
-            if lib is not None:
-                try:
-                    addr = ctypes.cast(getattr(lib, fname), ctypes.c_void_p).value
-                except AttributeError:
-                    addr = None
-            if not addr and get_proc is not None:
-                addr = get_proc(fname.encode())
-            if not addr:
-                raise OSError(f"OpenGL entry point {fname} not found")
-            setattr(self, fname, ctypes.CFUNCTYPE(res, *args)(addr))
-
-    def get(self, enum: int, kind: str = _I, count: int = 1) -> tuple:
-        """glGet{Integer,Float,Boolean}v as a tuple."""
-        ctype, fn = {_I: (ctypes.c_int, self.glGetIntegerv), _F: (ctypes.c_float, self.glGetFloatv)}.get(
-            kind, (ctypes.c_ubyte, self.glGetBooleanv)
-        )
-        buf = (ctype * max(count, 4))()  # GL may write more than asked for odd enums; never overflow
-        fn(enum, buf)
-        return tuple(buf[:count])
-
-    def get_i(self, enum: int, index: int) -> int:
-        """glGetIntegeri_v(enum, index)."""
-        buf = (ctypes.c_int * 4)()
-        self.glGetIntegeri_v(enum, index, buf)
-        return buf[0]
-
-    def get_i64(self, enum: int, index: int) -> int:
-        """glGetInteger64i_v(enum, index)."""
-        buf = (ctypes.c_int64 * 2)()
-        self.glGetInteger64i_v(enum, index, buf)
-        return buf[0]
-
-    def drain_errors(self) -> list[int]:
-        """Pending glGetError codes (at most 16)."""
-        out = []
-        for _ in range(16):
-            e = self.glGetError()
-            if not e:
-                break
-            out.append(int(e))
-        return out
-
-
-@lru_cache(maxsize=1)
-def raw_functions() -> RawGLFunctions:
-    """The process-wide raw entry points (loaded once)."""
-    return RawGLFunctions()
-
-
-@lru_cache(maxsize=1)
-def raw_functions_or_none() -> RawGLFunctions | None:
-    """raw_functions(), or None where no GL library exposes them (state is then not saved)."""
-    try:
-        return raw_functions()
-    except OSError:
-        return None
-
 
 # ---- GL state snapshot ------------------------------------------------------------------------
 class HostGLState:
@@ -279,7 +129,7 @@ class HostGLState:
     feedback) guaca never touches.
     """
 
-    def __init__(self, gl: RawGLFunctions, extra_units: tuple[int, ...] = ()):
+    def __init__(self, gl: RawGL, extra_units: tuple[int, ...] = ()):
         self.gl = gl
         self.units = tuple(sorted(set(range(_TEXTURE_UNITS)) | set(extra_units)))
         gl.drain_errors()  # the host's pending errors are not ours to report, nor to confuse us
@@ -290,11 +140,7 @@ class HostGLState:
             tuple(gl.get_i(e, i) for e in (0x80C9, 0x80C8, 0x80CB, 0x80CA, 0x8009, 0x883D))
             for i in range(_DRAW_BUFFERS)
         ]
-        self.color_masks = []
-        for i in range(_DRAW_BUFFERS):
-            m = (ctypes.c_ubyte * 4)()
-            gl.glGetBooleani_v(0x0C23, i, m)
-            self.color_masks.append(tuple(m))
+        self.color_masks = [gl.get_booleans_i(0x0C23, i, 4) for i in range(_DRAW_BUFFERS)]  # GL_COLOR_WRITEMASK
         self.buffers = {b: gl.get(b)[0] for b in _BUFFER_TARGETS}
         self.indexed = {}
         for target, (binding, start, size, max_q, cap) in _INDEXED_BUFFERS.items():
@@ -396,9 +242,8 @@ class _Native:
 
     @staticmethod
     def _load(lib_name: str, prefix: str):
-        try:
-            lib = ctypes.CDLL(lib_name)
-        except OSError:
+        lib = load_library(lib_name)
+        if lib is None:
             return None
         try:
             if prefix == "egl":
@@ -502,9 +347,9 @@ class ContextGuard:
             self._depth = 1
             saved = mgl = None
             try:
-                if self.restore_state and raw_functions_or_none() is not None:
+                if self.restore_state and raw_gl() is not None:
                     mgl = (self.ctx.fbo,)
-                    saved = HostGLState(raw_functions_or_none(), (self.ctx.default_texture_unit,))
+                    saved = HostGLState(raw_gl(), (self.ctx.default_texture_unit,))
                     saved.reset_for_guaca()
                 yield
             finally:
@@ -530,7 +375,9 @@ def on_context(fn):
 
 def count_gl_objects(limit: int = 4096) -> dict[str, int]:
     """Live buffers, textures, VAOs, programs, framebuffers and queries among names 1..limit (current context)."""
-    gl = raw_functions()
+    gl = raw_gl()
+    if gl is None:
+        raise OSError("no GL library exposes the entry points gl_state.RawGL needs")
     out = {}
     for kind, fn in (
         ("buffers", gl.glIsBuffer),

@@ -20,12 +20,11 @@ Storage that the rule caps degrades like any full pool: fragments are dropped, c
 
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
 from dataclasses import dataclass
 
 from . import env
 from .errors import LimitError
+from .gl_state import raw_gl
 
 INDEX_LIMIT_BYTES = 2**31 - 1
 MEMORY_SHARE = 0.5  # of the memory reported free: the rest stays with the driver and the host application
@@ -59,21 +58,11 @@ class DeviceLimits:
 
 def _nvx_available_bytes(ext: set) -> int | None:
     """Free video memory from GL_NVX_gpu_memory_info through the current context, or None."""
-    if "GL_NVX_gpu_memory_info" not in ext:
+    gl = raw_gl() if "GL_NVX_gpu_memory_info" in ext else None
+    if gl is None:
         return None
-    for name in ("OpenGL", "GL"):
-        lib = ctypes.util.find_library(name)
-        if not lib:
-            continue
-        try:
-            get = ctypes.CDLL(lib).glGetIntegerv  # dispatches to the current context (GLVND)
-            get.argtypes, get.restype = [ctypes.c_uint, ctypes.POINTER(ctypes.c_int)], None
-            value = ctypes.c_int(0)
-            get(ctypes.c_uint(_GPU_MEMORY_INFO_CURRENT_AVAILABLE_VIDMEM_NVX), ctypes.byref(value))
-            return value.value * 1024 if value.value > 0 else None
-        except (OSError, AttributeError):
-            continue
-    return None
+    kib = gl.get(_GPU_MEMORY_INFO_CURRENT_AVAILABLE_VIDMEM_NVX)[0]
+    return kib * 1024 if kib > 0 else None
 
 
 def _host_available_bytes() -> int | None:

@@ -1,4 +1,4 @@
-"""YAML loading that keeps line numbers, so config errors can cite file:line."""
+"""Reading users' files so config errors can cite file:line: their UTF-8 text, and YAML that keeps line numbers."""
 
 from __future__ import annotations
 
@@ -111,17 +111,30 @@ def load_yaml_text(text: str, file: str) -> Located:
     return Located(data, lines, file)
 
 
+def read_text(path: str | Path, cite: str | Path | None = None, line: int | None = None, key: str | None = None) -> str:
+    """A file's UTF-8 text; other bytes are a ConfigError naming the byte and its line.
+
+    The error cites `path` at the byte's line, or, where the file was named by another one
+    (a material's method source), `cite` at `line` and `key`.
+    """
+    p = Path(path)
+    data = p.read_bytes()
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        bad_line = data.count(b"\n", 0, exc.start) + 1
+        raise ConfigError(
+            f"{p.name} is not UTF-8 text (byte 0x{data[exc.start]:02x} on line {bad_line})",
+            p if cite is None else cite,
+            bad_line if cite is None else line,
+            key,
+            "save the file as UTF-8",
+        ) from None
+
+
 def load_yaml_file(path: str | Path) -> Located:
     """Read and parse a YAML file (missing file → ConfigError)."""
     p = Path(path)
     if not p.is_file():
         raise ConfigError("file not found", p, hint="check the path")
-    data = p.read_bytes()
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = data.count(b"\n", 0, exc.start) + 1
-        raise ConfigError(
-            f"not UTF-8 text (byte 0x{data[exc.start]:02x})", p, line, hint="save the file as UTF-8"
-        ) from None
-    return load_yaml_text(text, str(p))
+    return load_yaml_text(read_text(p), str(p))

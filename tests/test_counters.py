@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from reference import layered_quads_scene
 
+from guaca_py.gl_state import raw_gl
 from guaca_py.gpu_counters import CounterBlock, FencedCopies, StagedReader, UploadBuffer
-from guaca_py.host_state import raw_functions_or_none
 
 SIZE = 64
 
@@ -39,7 +39,7 @@ def test_counter_block_resets_and_reads(gl_context):
 def test_fenced_copies_give_the_newest_finished_copy(gl_context):
     # a frame loop's late counters: copies queue behind a fence each; the newest finished one is
     # read and the older ones dropped; with every slot waiting, a new copy drops the oldest
-    gl = raw_functions_or_none()
+    gl = raw_gl()
     if gl is None:
         pytest.skip("no raw GL entry points")
     buf = gl_context.buffer(reserve=8)
@@ -69,8 +69,8 @@ def test_counters_set_aside_come_back_a_frame_later(gl_context, monkeypatch, fen
     import guaca_py.gpu_counters as gpu_counters
 
     if not fenced:
-        monkeypatch.setattr(gpu_counters, "raw_functions_or_none", lambda: None)
-    elif raw_functions_or_none() is None:
+        monkeypatch.setattr(gpu_counters, "raw_gl", lambda: None)
+    elif raw_gl() is None:
         pytest.skip("no raw GL entry points")
     block = CounterBlock(gl_context, ("a", "b"))
     try:

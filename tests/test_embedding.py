@@ -8,7 +8,8 @@ import pytest
 from conftest import quad_node, simple_scene
 
 from guaca_py import Renderer
-from guaca_py.host_state import HostGLState, count_gl_objects, native, native_handle, raw_functions
+from guaca_py.gl_state import raw_gl
+from guaca_py.host_state import HostGLState, count_gl_objects, native, native_handle
 
 SIZE = 48
 
@@ -53,13 +54,13 @@ class Host:
         ctx.front_face = "ccw"
         self.tex.use(location=0)
         self.ssbo.bind_to_storage_buffer(0)
-        gl = raw_functions()
+        gl = raw_gl()
         gl.glClearColor(0.05, 0.1, 0.15, 1.0)
         gl.glActiveTexture(0x84C0 + 3)
 
     def draw(self) -> np.ndarray:
         """A frame that uses the state as set: clear, draw twice at one depth (blended), read."""
-        gl = raw_functions()
+        gl = raw_gl()
         gl.glClear(0x4000 | 0x0100)  # raw clear: uses the bound framebuffer, clear colour, depth mask, scissor
         self.prog["depth"] = 0.2
         self.vao.render(moderngl.TRIANGLES)
@@ -90,7 +91,7 @@ def test_host_state_and_pixels_survive_a_guaca_frame(host_ctx):
         tex = host_ctx.texture((SIZE, SIZE), 4)  # a target the host owns (moderngl binds it at unit 31)
         host.set_state()
         before_px = host.draw()
-        before = HostGLState(raw_functions(), (host_ctx.default_texture_unit,))
+        before = HostGLState(raw_gl(), (host_ctx.default_texture_unit,))
         assert before_px[SIZE // 2, SIZE // 2, 3] == 255 and before_px[SIZE // 2, SIZE // 2, :3].max() > 0
     r = Renderer("default", ctx=host_ctx)
     frame = r.render(_scene(), SIZE, SIZE)
@@ -100,7 +101,7 @@ def test_host_state_and_pixels_survive_a_guaca_frame(host_ctx):
     clean.release()
     r.render(_scene(), SIZE, SIZE, target=tex, read_back=False)  # the frame-loop path too
     with host_ctx:
-        after = HostGLState(raw_functions(), (host_ctx.default_texture_unit,))
+        after = HostGLState(raw_gl(), (host_ctx.default_texture_unit,))
         for attr in ("scalars", "caps", "blend_i", "blend_funcs", "color_masks", "buffers", "indexed", "images"):
             assert getattr(after, attr) == getattr(before, attr), attr
         assert after.textures == before.textures
@@ -310,7 +311,7 @@ def test_restore_host_state_can_be_skipped(host_ctx):
     r = Renderer("exact", ctx=host_ctx, restore_host_state=False)
     img = r.render(_scene(), SIZE, SIZE).image
     with host_ctx:
-        left = HostGLState(raw_functions())
+        left = HostGLState(raw_gl())
     assert not left.caps[0x0B44]  # the geometry pass turned culling off and nobody put it back
     ref = Renderer("exact", ctx=host_ctx)
     np.testing.assert_array_equal(img, ref.render(_scene(), SIZE, SIZE).image)  # same frame either way
@@ -319,7 +320,7 @@ def test_restore_host_state_can_be_skipped(host_ctx):
 
 
 def test_host_wireframe_and_clip_control_do_not_leak_into_guaca(host_ctx):
-    gl = raw_functions()
+    gl = raw_gl()
     with host_ctx:
         host_ctx.wireframe = True  # glPolygonMode(GL_LINE)
         gl.glClipControl(0x8CA2, 0x935F)  # UPPER_LEFT, ZERO_TO_ONE (a reversed-Z host)
@@ -348,11 +349,11 @@ def test_release_after_the_shared_context_went_is_harmless():
 
 def test_timer_queries_are_deleted_on_release(host_ctx):
     """Timer queries are GL objects the renderer deletes (moderngl's Query cannot be released)."""
+    from guaca_py.gl_state import raw_gl
     from guaca_py.gpu_timer import TimerQuery
-    from guaca_py.host_state import raw_functions
 
     with host_ctx:
-        gl = raw_functions()
+        gl = raw_gl()
         q = TimerQuery(host_ctx)
         with q:
             host_ctx.clear(0.1, 0.2, 0.3, 1.0)
@@ -365,7 +366,7 @@ def test_timer_queries_are_deleted_on_release(host_ctx):
 def test_blending_sample_queries_are_deleted_on_release(host_ctx):
     """unsorted_blend's samples-passed queries (two, alternating by frame) are deleted with the renderer."""
     from guaca_py import Renderer
-    from guaca_py.host_state import raw_functions
+    from guaca_py.gl_state import raw_gl
     from guaca_py.scene.loader import load_scene_text
 
     scene = load_scene_text(
@@ -373,7 +374,7 @@ def test_blending_sample_queries_are_deleted_on_release(host_ctx):
         "  - {mesh: {primitive: quad, size: [4, 4]}, material: {description: unlit, uniforms: {color: [1, 0, 0], alpha: 0.5}}}\n"
     )
     with host_ctx:
-        gl = raw_functions()
+        gl = raw_gl()
         r = Renderer("exact", ctx=host_ctx, method="unsorted_blend")
         counts = [r.render(scene, 32, 32, read_back=False).stats["fragments"]["blended"] for _ in range(3)]
         assert counts == [32 * 32] * 3

@@ -122,7 +122,7 @@ def test_alias_cycle_in_pipeline_passes(tmp_path, capsys):
 def test_pipeline_not_utf8(tmp_path, capsys):
     p = write(tmp_path / "p.yaml", b"passes:\n  - geometry: {}  # caf\xe9\n")
     rc, _, err = run(["--pipeline", p, "--out", tmp_path / "o.png"], capsys)
-    expect_error(rc, err, f"{p}:2", "not UTF-8 text (byte 0xe9)")
+    expect_error(rc, err, f"{p}:2", "not UTF-8 text (byte 0xe9 on line 2)")
 
 
 def test_pass_listed_twice(tmp_path, capsys):

@@ -555,3 +555,12 @@ def test_demo_camera_frames_every_object():
         assert np.all(clip[:, 3] > 0), node.name
         ndc = clip[:, :3] / clip[:, 3:4]
         assert np.all(np.abs(ndc) <= 1.0), node.name
+
+
+def test_scene_file_not_utf8_names_the_byte_and_its_line(tmp_path):
+    p = tmp_path / "s.yaml"
+    p.write_bytes(b"camera: {fov_y: 50}\n# caf\xe9\nnodes: []\n")
+    with pytest.raises(ConfigError) as err:
+        load_scene(p)
+    assert (err.value.file, err.value.line) == (p, 2)
+    assert "not UTF-8 text (byte 0xe9 on line 2)" in err.value.reason and err.value.hint == "save the file as UTF-8"

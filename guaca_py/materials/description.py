@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import json
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import ConfigError
+from ..numeric import Range, number_hint
+from ..yaml_source import read_text
+from . import glsl
 
 #: sampler2D uniforms a material may declare: each takes its own texture unit, from 8 up to the
 #: light grid's unit 31 (renderer.apply_material, passes/light_culling.py)
@@ -19,13 +21,6 @@ UNIFORM_SIZES = {"float": 1, "int": 1, "vec2": 2, "vec3": 3, "vec4": 4, "mat4": 
 STAGES = ("displacement", "visibility")
 _TOP_KEYS = {"name", "description", "uniforms", "displacement", "visibility", "transparent"}
 _SPEC_KEYS = {"type", "default", "range"}
-_ALPHA_WRITE = re.compile(r"\bgua_alpha\s*([-+*/]?=)(?!=)\s*([^;]*);")
-_IDENT = re.compile(r"^[A-Za-z_]\w*$")
-_LITERAL_ONE = re.compile(r"^\(?\s*1(\.0*)?f?\s*\)?$")
-# gua_alpha handed to a function (an `inout`/`out` parameter may write it) or touched by ++/--
-_ALPHA_UNSURE = re.compile(r"[(,]\s*gua_alpha\s*[,)]|\+\+\s*gua_alpha|gua_alpha\s*(\+\+|--)|--\s*gua_alpha")
-# the preprocessor can write gua_alpha under another name
-_PREPROCESSOR = re.compile(r"^\s*#\s*(define|if|ifdef|ifndef|include)\b", re.M)
 
 
 @dataclass
@@ -51,6 +46,10 @@ class Method:
     source: str
     file: Path  # where the source text lives (JSON or .glsl)
     first_line: int  # line in `file` where the source starts
+    code: str = field(init=False, repr=False)  # the source without comments, what analysis searches
+
+    def __post_init__(self):
+        self.code = glsl.strip_comments(self.source)
 
 
 @dataclass
@@ -68,9 +67,8 @@ class MaterialDescription:
 
     def __post_init__(self):
         for m in self.methods.get("displacement", []) + self.methods.get("visibility", []):
-            code = _strip_comments(m.source)
-            self._alpha_writes += _ALPHA_WRITE.findall(code)
-            self._unsure = self._unsure or bool(_ALPHA_UNSURE.search(code) or _PREPROCESSOR.search(code))
+            self._alpha_writes += glsl.alpha_writes(m.code)
+            self._unsure = self._unsure or glsl.alpha_unreadable(m.code)
 
     def is_transparent(self, values: dict) -> bool:
         """Whether an instance with these uniform values can produce alpha < 1.
@@ -87,12 +85,11 @@ class MaterialDescription:
         if self._unsure:
             return True
         for op, rhs in self._alpha_writes:
-            rhs = rhs.strip()
-            if op == "=" and _LITERAL_ONE.match(rhs):
+            if op == "=" and glsl.is_literal_one(rhs):
                 continue
             if (
                 op in ("=", "*=")
-                and _IDENT.match(rhs)
+                and glsl.is_identifier(rhs)
                 and rhs in self.uniforms
                 and self.uniforms[rhs].type == "float"
                 and float(values.get(rhs, 1.0)) >= 1.0
@@ -120,19 +117,6 @@ class MaterialDescription:
         return out
 
 
-def _numeric_text(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
-
-
-def _strip_comments(src: str) -> str:
-    src = re.sub(r"/\*.*?\*/", "", src, flags=re.S)
-    return re.sub(r"//[^\n]*", "", src)
-
-
 def check_value(typ: str, value, file, line, key):
     """Validate one uniform value against its type; returns the normalized value."""
     size = UNIFORM_SIZES[typ]
@@ -142,12 +126,9 @@ def check_value(typ: str, value, file, line, key):
         return value
     if typ in ("float", "int"):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            hint = "write a plain number"
-            if isinstance(value, str) and _numeric_text(value):
-                hint = (
-                    f"YAML reads {value!r} as text: write it with a dot and a signed exponent, e.g. {float(value):.1e}"
-                )
-            raise ConfigError(f"expected {typ}, got {type(value).__name__} {value!r}", file, line, key, hint)
+            raise ConfigError(
+                f"expected {typ}, got {type(value).__name__} {value!r}", file, line, key, number_hint(value)
+            )
         if typ == "int" and not float(value).is_integer():
             raise ConfigError(f"expected int, got {value!r}", file, line, key)
         return int(value) if typ == "int" else float(value)
@@ -157,20 +138,15 @@ def check_value(typ: str, value, file, line, key):
     return [float(v) for v in arr]
 
 
-def _bound_text(r: tuple[float | None, float | None]) -> str:
-    lo, hi = r
-    return f"[{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}]"
-
-
 def check_range(spec: UniformSpec, value, file, line, declared_by: str = "the material"):
     """`value` (already type-checked) when every component lies in the uniform's declared range."""
     if spec.range is None:
         return value
-    lo, hi = spec.range
+    bounds = Range(*spec.range)
     for v in value if isinstance(value, list) else [value]:
-        if (lo is not None and v < lo) or (hi is not None and v > hi):
+        if not bounds.contains(v):
             raise ConfigError(
-                f"{value!r} is outside {_bound_text(spec.range)}, the range {declared_by} declares for it",
+                f"{value!r} is outside {bounds}, the range {declared_by} declares for it",
                 file,
                 line,
                 spec.name,
@@ -193,22 +169,6 @@ def _parse_range(raw, typ: str, path: Path, line: int, uname: str) -> tuple[floa
             'e.g. "range": [0, 1]; every component of a vector is checked against it',
         )
     return (None if raw[0] is None else float(raw[0]), None if raw[1] is None else float(raw[1]))
-
-
-def _read_text(p: Path, cite: Path, line: int | None, key: str | None) -> str:
-    """A UTF-8 text file; other bytes are an error citing the byte's line."""
-    data = p.read_bytes()
-    try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        bad_line = data.count(b"\n", 0, exc.start) + 1
-        raise ConfigError(
-            f"{p.name} is not UTF-8 text (byte 0x{data[exc.start]:02x} on line {bad_line})",
-            cite,
-            line if cite != p else bad_line,
-            key,
-            "save the file as UTF-8",
-        ) from None
 
 
 def _key_line(text: str, key: str) -> int | None:
@@ -239,7 +199,7 @@ def _method(entry, stage: str, i: int, path: Path, text: str, search_from: int) 
             'e.g. {"name": "my_method", "source": "void my_method() { gua_alpha = 0.5; }"}',
         )
     name = entry["name"]
-    if not isinstance(name, str) or not _IDENT.match(name):
+    if not isinstance(name, str) or not glsl.is_identifier(name):
         raise ConfigError(f"method name {name!r} is not a GLSL identifier", path, None, key)
     pos = text.find(f'"{name}"', search_from)
     pos = pos if pos >= 0 else search_from
@@ -247,7 +207,7 @@ def _method(entry, stage: str, i: int, path: Path, text: str, search_from: int) 
         src_path = (path.parent / entry["file"]).resolve()
         if not src_path.is_file():
             raise ConfigError(f"method source file not found: {src_path}", path, _line_of(text, pos), key)
-        source, file, first = _read_text(src_path, path, _line_of(text, pos), key), src_path, 1
+        source, file, first = read_text(src_path, path, _line_of(text, pos), key), src_path, 1
     else:
         src = entry["source"]
         lines_ok = isinstance(src, list) and all(isinstance(x, str) for x in src)
@@ -259,7 +219,7 @@ def _method(entry, stage: str, i: int, path: Path, text: str, search_from: int) 
         # a list of lines starts on the line after '"source": ['
         first = _line_of(text, _source_start(text, spos))
         file = path
-    if not re.search(rf"\bvoid\s+{name}\s*\(\s*\)", source):
+    if not glsl.defines_void_function(source, name):
         raise ConfigError(
             f"method source does not define 'void {name}()'",
             file,
@@ -275,7 +235,7 @@ def load_material(path: str | Path) -> MaterialDescription:
     path = Path(path)
     if not path.is_file():
         raise ConfigError("material file not found", path)
-    text = _read_text(path, path, None, None)
+    text = read_text(path)
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
@@ -316,7 +276,7 @@ def load_material(path: str | Path) -> MaterialDescription:
     uniforms: dict[str, UniformSpec] = {}
     for uname, spec in raw_uniforms.items():
         line = _line_of(text, max(text.find(f'"{uname}"'), 0))
-        if not _IDENT.match(uname) or uname.startswith("gua_"):
+        if not glsl.is_identifier(uname) or uname.startswith("gua_"):
             raise ConfigError(
                 f"uniform name {uname!r} is not allowed",
                 path,

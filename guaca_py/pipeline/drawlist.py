@@ -8,7 +8,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..materials import MaterialDescription, MaterialRegistry
-from ..scene.graph import MeshData, Scene
+from ..scene.graph import MAX_WORLD, MeshData, Scene
 from ..shaders import mat_bytes, set_uniform, uniform_names
 from .draw_cache import material_key
 
@@ -32,9 +32,6 @@ class Draw:
         set_uniform(prog, "gua_model_matrix", self.model_bytes or mat_bytes(self.world))
         if "gua_normal_matrix" in uniform_names(prog):  # the inverse only where it is used
             set_uniform(prog, "gua_normal_matrix", self.normal_bytes or mat_bytes(np.linalg.inv(self.world).T))
-
-
-MAX_WORLD = 1.0e7  # float32 positions step by 1 at 1.7e7; llvmpipe's clipper drops triangles past ~1e8
 
 
 def _mesh_reach(mesh) -> float:
@@ -71,6 +68,15 @@ def check_world_extents(placed: list[tuple]) -> None:
         )
 
 
+def _resolve_material(inst, scene: Scene, materials: MaterialRegistry) -> tuple[MaterialDescription, dict, bool]:
+    """A node's material instance (None: default pbr) as description, checked values and transparency."""
+    desc_name = inst.description if inst else "pbr"
+    where = getattr(inst, "source", (scene.source, None)) if inst else (scene.source, None)
+    desc = materials.get(desc_name, where)
+    values = desc.resolve_values(inst.uniforms if inst else {}, where)
+    return desc, values, desc.is_transparent(values)
+
+
 def build_draw_list(scene: Scene, materials: MaterialRegistry, cache=None) -> list[Draw]:
     """Serialize the scene graph; materials and uniform values are checked here (errors cite the scene).
 
@@ -84,12 +90,8 @@ def build_draw_list(scene: Scene, materials: MaterialRegistry, cache=None) -> li
     for node, world in scene.walk():
         if node.mesh is None:
             continue
-        inst = node.material
-        desc_name = inst.description if inst else "pbr"
-        where = getattr(inst, "source", (scene.source, None)) if inst else (scene.source, None)
-        desc = materials.get(desc_name, where)
-        values = desc.resolve_values(inst.uniforms if inst else {}, where)
-        draws.append(Draw(len(draws), node.name, node.mesh, desc, values, world, desc.is_transparent(values)))
+        desc, values, transparent = _resolve_material(node.material, scene, materials)
+        draws.append(Draw(len(draws), node.name, node.mesh, desc, values, world, transparent))
         placed.append((node, world))
     check_world_extents(placed)
     return draws
@@ -99,14 +101,7 @@ def _build_cached(scene: Scene, materials: MaterialRegistry, cache) -> list[Draw
     draws: list[Draw] = []
 
     def resolver(inst):
-        def resolve():
-            desc_name = inst.description if inst else "pbr"
-            where = getattr(inst, "source", (scene.source, None)) if inst else (scene.source, None)
-            desc = materials.get(desc_name, where)
-            values = desc.resolve_values(inst.uniforms if inst else {}, where)
-            return desc, values, desc.is_transparent(values)
-
-        return resolve
+        return lambda: _resolve_material(inst, scene, materials)
 
     def visit(node, parent_key, parent_world):
         key, world, model_bytes, normal_bytes = cache.world(parent_key, parent_world, node.transform)

@@ -6,6 +6,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from ..numeric import NON_NEGATIVE, POSITIVE, Range, yaml_number_hint
+
 
 @dataclass(frozen=True)
 class Setting:
@@ -19,40 +21,35 @@ class Setting:
 
     def validate(self, value) -> str | None:
         """Reason why `value` is invalid, or None."""
+        expected = f"expected {'/'.join(t.__name__ for t in self.types)}, got {value!r}"
         if isinstance(value, bool) and bool not in self.types:
-            return f"expected {'/'.join(t.__name__ for t in self.types)}, got {value!r}"
-        if not isinstance(value, self.types) or (isinstance(value, str) and float in self.types and _numeric(value)):
-            reason = f"expected {'/'.join(t.__name__ for t in self.types)}, got {value!r}"
-            if isinstance(value, str) and _numeric(value) and (float in self.types or int in self.types):
-                reason += f" (YAML reads {value!r} as text: write it with a dot and a signed exponent, e.g. "
-                reason += f"{float(value):.1e})"
-            return reason
+            return expected
+        numeric = float in self.types or int in self.types
+        hint = yaml_number_hint(value) if numeric else None
+        # number text is refused even where text is accepted: YAML meant a number there
+        if not isinstance(value, self.types) or (hint and float in self.types):
+            return f"{expected} ({hint})" if hint else expected
         if self.choices is not None and value not in self.choices:
             return f"must be one of {', '.join(map(str, self.choices))}, got {value!r}"
         return self.check(value) if self.check else None
 
 
-def _numeric(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return text.strip().lower() not in ("nan", "inf", "-inf", "+inf", "infinity")
-
-
 def positive(v) -> str | None:
     """Check: value > 0."""
-    return None if v > 0 else f"must be > 0, got {v}"
+    return POSITIVE.problem(v)
 
 
 def non_negative(v) -> str | None:
     """Check: value >= 0."""
-    return None if v >= 0 else f"must be >= 0, got {v}"
+    return NON_NEGATIVE.problem(v)
 
 
 def unit_interval(v) -> str | None:
     """Check: 0 < value <= 1."""
-    return None if 0 < v <= 1 else f"must be in (0, 1], got {v}"
+    return UNIT_INTERVAL.problem(v)
+
+
+UNIT_INTERVAL = Range(0, 1, lo_open=True)
 
 
 def auto_or_positive_mb(v) -> str | None:

@@ -8,19 +8,10 @@ differences of gua_texcoords. Anything else makes the material need `raster: har
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 
-from ..materials.description import MaterialDescription, _strip_comments
-
-# fragment-only built-ins and functions, by what a user would search the material for
-_FRAGMENT_ONLY = re.compile(
-    r"\b(dFdx\w*|dFdy\w*|fwidth\w*|interpolateAt\w+|gl_FragCoord|gl_FrontFacing|gl_PrimitiveID|"
-    r"gl_HelperInvocation|gl_SampleID|gl_SamplePosition|gl_SampleMaskIn|gl_Layer|discard)\b"
-)
-_TEXTURE_AT_TEXCOORDS = re.compile(r"\btexture\s*\(\s*(\w+)\s*,\s*gua_texcoords\s*\)")
-_GRAD = r"textureGrad(\1, gua_texcoords, gua_texcoords_dx, gua_texcoords_dy)"
-_IMPLICIT_LOD = re.compile(r"\b(texture|textureOffset|textureProj|textureProjOffset)\s*\(")
+from ..materials import glsl
+from ..materials.description import MaterialDescription
 
 
 @dataclass(frozen=True)
@@ -37,19 +28,15 @@ def compute_material(mat: MaterialDescription) -> ComputeMaterial:
     sources: dict[str, str] = {}
     derivatives = False
     for m in mat.methods.get("visibility", []):
-        code = _strip_comments(m.source)  # only to search: the source keeps its lines for error messages
-        hit = _FRAGMENT_ONLY.search(code)
-        lod = _IMPLICIT_LOD.search(_TEXTURE_AT_TEXCOORDS.sub("", code))
-        if hit or lod:
-            what = (
-                hit.group(1) if hit else f"{lod.group(1)}() with implicit LOD on coordinates other than gua_texcoords"
-            )
+        feature, lod = glsl.fragment_only_feature(m.code), glsl.implicit_lod_sampling(m.code)
+        if feature or lod:
+            what = feature or f"{lod}() with implicit LOD on coordinates other than gua_texcoords"
             return ComputeMaterial(
                 {},
                 False,
                 f"material '{mat.name}' ({mat.path}) method '{m.name}' uses {what}, which a compute kernel "
                 "cannot provide: it needs transparency.raster: hardware",
             )
-        derivatives = derivatives or bool(_TEXTURE_AT_TEXCOORDS.search(code))
-        sources[m.name] = _TEXTURE_AT_TEXCOORDS.sub(_GRAD, m.source)
+        derivatives = derivatives or glsl.samples_at_texcoords(m.code)
+        sources[m.name] = glsl.sample_grad_at_texcoords(m.source)  # the source keeps its lines for errors
     return ComputeMaterial(sources, derivatives, None)

@@ -30,9 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConfigError
 from .graph import Camera, MaterialInstance, MeshData, Node, Transform
-from .mesh_io import MESH_FORMATS_HINT, trimesh_to_meshdata
+from .mesh_io import MESH_FORMATS_HINT, file_error, trimesh_to_meshdata
 from .texture import TextureImage
 
 GLTF_SUFFIXES = (".glb", ".gltf")
@@ -177,10 +176,7 @@ def load_gltf(
     import trimesh
 
     p = Path(path)
-
-    def fail(reason: str, hint: str) -> ConfigError:
-        return ConfigError(reason, file_for_errors if file_for_errors is not None else p, line, key, hint)
-
+    fail = file_error(p, file_for_errors, line, key)
     if not p.is_file():
         raise fail(f"glTF file not found: {p}", "check the path; relative paths resolve against the scene file")
     try:

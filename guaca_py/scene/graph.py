@@ -131,6 +131,9 @@ class Camera:
 
 
 LIGHT_TYPES = ("point", "spot", "directional")
+#: farthest a scene's coordinates may reach from the origin: float32 positions step by 1 at 1.7e7,
+#: and llvmpipe's clipper drops triangles past ~1e8 (the loader checks scales, the draw list extents)
+MAX_WORLD = 1.0e7
 
 
 @dataclass

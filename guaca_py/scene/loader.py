@@ -71,8 +71,9 @@ import numpy as np
 import yaml
 
 from ..errors import ConfigError
-from ..yaml_source import compose, nesting_error
-from .graph import LIGHT_TYPES, Camera, Light, MaterialInstance, MeshData, Node, Scene, Transform
+from ..numeric import Range, number_hint
+from ..yaml_source import compose, nesting_error, read_text
+from .graph import LIGHT_TYPES, MAX_WORLD, Camera, Light, MaterialInstance, MeshData, Node, Scene, Transform
 from .mesh_io import load_mesh_file
 from .primitives import PRIMITIVE_KINDS, make_primitive
 
@@ -89,7 +90,6 @@ LIGHT_KEYS = {
 TEXTURE_SUFFIXES = (".png", ".jpg", ".jpeg")
 MAX_SCENE_DEPTH = 100  # levels of children; the loader, the graph walk and the draw list recurse per level
 DEPTH_BITS = 24  # the G-buffer depth and gl_FragCoord.z both resolve 2**-24 steps near 1
-MAX_WORLD = 1.0e7  # as pipeline/drawlist.py: beyond it float32 positions and llvmpipe's clipper fail
 
 _TAG = "tag:yaml.org,2002:"
 
@@ -118,19 +118,6 @@ def _kind(node: yaml.Node) -> str:
         return f"a list of {len(node.value)}"
     short = node.tag.rsplit(":", 1)[-1]
     return "nothing (null)" if short == "null" else f"{short} {node.value!r}"
-
-
-def number_hint(node: yaml.Node) -> str:
-    """How to write a number; YAML 1.1 reads exponents without a dot and a sign ('1e30') as text."""
-    text = node.value if isinstance(node, yaml.ScalarNode) else None
-    if isinstance(text, str):
-        try:
-            value = float(text)
-        except ValueError:
-            value = None
-        if value is not None:
-            return f"YAML reads {text!r} as text: write it with a dot and a signed exponent, e.g. {value:.1e}"
-    return "write a plain number like 1.5"
 
 
 class _Reader:
@@ -185,15 +172,14 @@ class _Reader:
         """A finite number, optionally within [lo, hi] (or (lo, hi] with lo_open)."""
         node = at.node
         if not (isinstance(node, yaml.ScalarNode) and node.tag in (_TAG + "int", _TAG + "float")):
-            raise self.error(at, f"expected a number, got {_kind(node)}", number_hint(node))
+            scalar = node.value if isinstance(node, yaml.ScalarNode) else None
+            raise self.error(at, f"expected a number, got {_kind(node)}", number_hint(scalar))
         value = float(self.plain(node))
         if not math.isfinite(value):
             raise self.error(at, f"expected a finite number, got {node.value}")
-        below = lo is not None and (value <= lo if lo_open else value < lo)
-        if below or (hi is not None and value > hi):
-            lo_txt = "-inf" if lo is None else f"{lo:g}"
-            rng = f"{'(' if lo_open else '['}{lo_txt}, {'inf' if hi is None else f'{hi:g}'}]"
-            raise self.error(at, f"{value:g} is out of range {rng}")
+        bounds = Range(lo, hi, lo_open)
+        if not bounds.contains(value):
+            raise self.error(at, f"{value:g} is out of range {bounds}")
         return value
 
     def vector(self, at: _At, n: int = 3, non_negative: bool = False) -> tuple[float, ...]:
@@ -517,11 +503,7 @@ def load_scene(path: str | Path) -> Scene:
     p = Path(path)
     if not p.is_file():
         raise ConfigError(f"scene file not found: {p}", p, hint="check the path")
-    try:
-        text = p.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise ConfigError(f"scene file is not UTF-8 text ({exc.reason})", p) from None
-    scene = load_scene_text(text, str(p), p.parent)
+    scene = load_scene_text(read_text(p), str(p), p.parent)
     scene.source = p.resolve()
     return scene
 

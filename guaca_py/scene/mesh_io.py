@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +12,17 @@ from ..errors import ConfigError
 from .graph import MeshData
 
 MESH_FORMATS_HINT = "supported formats: .obj, .ply, .stl, .glb, .gltf (anything trimesh reads)"
+
+
+def file_error(
+    p: Path, file_for_errors: str | Path | None, line: int | None, key: str | None
+) -> Callable[[str, str], ConfigError]:
+    """`fail(reason, hint)` for a model file: the error cites the scene file's line and key where it was named."""
+
+    def fail(reason: str, hint: str) -> ConfigError:
+        return ConfigError(reason, file_for_errors if file_for_errors is not None else p, line, key, hint)
+
+    return fail
 
 
 def _smooth_normals(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -81,10 +93,7 @@ def load_mesh_file(
     import trimesh  # imported lazily: scenes made only of primitives never pay for it
 
     p = Path(path)
-
-    def fail(reason: str, hint: str) -> ConfigError:
-        return ConfigError(reason, file_for_errors if file_for_errors is not None else p, line, key, hint)
-
+    fail = file_error(p, file_for_errors, line, key)
     if not p.is_file():
         what = "is a directory, not a mesh file" if p.is_dir() else "not found"
         raise fail(

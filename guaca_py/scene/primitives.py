@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
+from ..numeric import POSITIVE, Range
 from .graph import MeshData
 
 # Caps keep a typo like `segments: 100000` from silently allocating gigabytes.
@@ -164,8 +165,10 @@ def _size(n: int) -> Callable[[str, str, Any], list[float]]:
             v = [v] * n
         if not isinstance(v, (list, tuple)) or len(v) != n or not all(_is_number(x) for x in v):
             raise _bad(kind, key, f"expected a list of {n} numbers, got {v!r}", f"e.g. {key}: {[1] * n}")
-        if any(x <= 0 for x in v):
-            raise _bad(kind, key, f"all components must be > 0, got {list(v)}", "use positive extents")
+        if not all(POSITIVE.contains(x) for x in v):
+            raise _bad(
+                kind, key, f"all components must be {POSITIVE.requirement()}, got {list(v)}", "use positive extents"
+            )
         return [float(x) for x in v]
 
     return check
@@ -173,17 +176,19 @@ def _size(n: int) -> Callable[[str, str, Any], list[float]]:
 
 def _positive(kind: str, key: str, v: Any) -> float:
     """Validator for a positive finite number."""
-    if not _is_number(v) or v <= 0:
-        raise _bad(kind, key, f"expected a number > 0, got {v!r}", f"e.g. {key}: 1.0")
+    if not _is_number(v) or not POSITIVE.contains(v):
+        raise _bad(kind, key, f"expected a number {POSITIVE.requirement()}, got {v!r}", f"e.g. {key}: 1.0")
     return float(v)
 
 
 def _count(lo: int, hi: int) -> Callable[[str, str, Any], int]:
     """Validator for an integer in [lo, hi]."""
 
+    bounds = Range(lo, hi)
+
     def check(kind: str, key: str, v: Any) -> int:
-        if not isinstance(v, Integral) or isinstance(v, bool) or not lo <= v <= hi:
-            raise _bad(kind, key, f"expected an integer in [{lo}, {hi}], got {v!r}", f"e.g. {key}: {lo * 4}")
+        if not isinstance(v, Integral) or isinstance(v, bool) or not bounds.contains(v):
+            raise _bad(kind, key, f"expected an integer {bounds.requirement()}, got {v!r}", f"e.g. {key}: {lo * 4}")
         return int(v)
 
     return check

@@ -1,0 +1,70 @@
+"""Numbers given by users: the allowed ranges they are checked against, and how to write one YAML read as text.
+
+Every check of a number against bounds (pass and method settings, `--width` and friends, material
+uniform ranges, scene values, primitive parameters) tests `Range.contains` and names the bounds
+with `str(Range)` or `Range.requirement`; each caller words its own sentence around them. YAML 1.1
+reads an exponent without a dot and a sign ('1e30') as a string: `yaml_number_hint` says how to
+write it, wherever such text reaches a number.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+PLAIN_NUMBER_HINT = "write a plain number like 1.5"
+
+
+@dataclass(frozen=True)
+class Range:
+    """Allowed values from `lo` to `hi` (None: unbounded on that side), each end included unless open."""
+
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    hi_open: bool = False
+
+    def contains(self, value: float) -> bool:
+        """Whether `value` lies within the bounds (NaN lies within no bound)."""
+        above = self.lo is None or (value > self.lo if self.lo_open else value >= self.lo)
+        return above and (self.hi is None or (value < self.hi if self.hi_open else value <= self.hi))
+
+    def __str__(self) -> str:
+        """Interval notation, infinite ends written as such: '[0, 1]', '(0, inf]'."""
+        lo = "-inf" if self.lo is None else f"{self.lo:g}"
+        hi = "inf" if self.hi is None else f"{self.hi:g}"
+        return f"{'(' if self.lo_open else '['}{lo}, {hi}{')' if self.hi_open else ']'}"
+
+    def requirement(self) -> str:
+        """The bounds as a requirement: '> 0' or '>= 1' for one bound, 'in (0, 1]' for two."""
+        if self.hi is None and self.lo is not None:
+            return f"{'>' if self.lo_open else '>='} {self.lo:g}"
+        if self.lo is None and self.hi is not None:
+            return f"{'<' if self.hi_open else '<='} {self.hi:g}"
+        return f"in {self}"
+
+    def problem(self, value: float) -> str | None:
+        """'must be > 0, got -1' when `value` lies outside, else None (a settings check)."""
+        return None if self.contains(value) else f"must be {self.requirement()}, got {value}"
+
+
+POSITIVE = Range(0, lo_open=True)
+NON_NEGATIVE = Range(0)
+
+
+def yaml_number_hint(value: object) -> str | None:
+    """How to write `value` as a number when it is text that reads as a finite number ('1e30'), else None."""
+    if not isinstance(value, str):
+        return None
+    try:
+        number = float(value)
+    except ValueError:
+        return None
+    if not math.isfinite(number):  # 'nan', 'inf' and '1e999' are no exponent mistake
+        return None
+    return f"YAML reads {value!r} as text: write it with a dot and a signed exponent, e.g. {number:.1e}"
+
+
+def number_hint(value: object) -> str:
+    """The hint for a value given where a number belongs: `yaml_number_hint`'s, or write a plain number."""
+    return yaml_number_hint(value) or PLAIN_NUMBER_HINT
