@@ -27,9 +27,9 @@ from .present import Presenter
 from .raster import RasterRouter
 from .scene.graph import Scene
 from .shaders import ShaderLibrary, SourceMap, set_uniform, set_uniforms
+from .shaders.slots import Texture
 
 _FIRST_RESOURCES = {"draw_list", "lights"}
-_TEXTURE_UNIT_BASE = 8  # units below are used by the passes' own inputs
 
 
 def method_settings(
@@ -237,7 +237,7 @@ class Renderer:
         for every program of the material (the compute rasterizer sets them on four kernels); the
         values are converted once for all of them.
         """
-        unit = _TEXTURE_UNIT_BASE
+        unit = Texture.MATERIALS
         values = []
         for name, spec in draw.material.uniforms.items():
             value = draw.values[name]

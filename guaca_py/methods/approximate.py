@@ -15,6 +15,7 @@ import numpy as np
 from ..gpu_timer import SamplesQuery
 from ..pipeline.settings import Setting
 from ..shaders import set_uniform
+from ..shaders.slots import Buffer, Texture
 from .base import TransparencyMethod
 
 _FILL_GROUPS_MAX = 4096
@@ -23,7 +24,7 @@ _FILL_GROUPS_MAX = 4096
 def fill_uint_buffer(frame, buffer, count: int, value: int) -> None:
     """Set the first `count` uint words of `buffer` to `value` on the GPU."""
     prog = frame.renderer.shaders.compute("approx/fill.comp.j2")
-    buffer.bind_to_storage_buffer(0)
+    buffer.bind_to_storage_buffer(Buffer.FILL_TARGET)
     prog["gua_fill_count"] = count
     prog["gua_fill_value"] = value
     prog.run(max(1, min(_FILL_GROUPS_MAX, math.ceil(count / 256))), 1, 1)
@@ -173,8 +174,10 @@ class ForwardBlendMethod(TransparencyMethod):
         return v
 
     def bind_composite(self, frame, program) -> None:
-        """Accumulation targets on the method's texture units (4+)."""
-        for unit, (name, tex) in enumerate(zip(("gua_approx_accum", "gua_approx_weight"), self._targets), start=4):
+        """Accumulation targets on the method's texture units."""
+        for unit, name, tex in zip(
+            (Texture.APPROX_ACCUM, Texture.APPROX_WEIGHT), ("gua_approx_accum", "gua_approx_weight"), self._targets
+        ):
             tex.use(location=unit)
             set_uniform(program, name, unit)
 

@@ -17,6 +17,7 @@ from ..gpu_counters import CounterBlock, StagedReader
 from ..pipeline.settings import Setting, non_negative, positive
 from ..prefix_sum import GpuFill, PrefixSum, dispatch_grid
 from ..shaders import set_uniform
+from ..shaders.slots import Buffer
 from .base import TransparencyMethod
 from .presort_lf import _budget
 
@@ -182,7 +183,12 @@ class DynamicFragmentBuffer(_CountedStorage):
     layout = "dfb"
 
     def _bindings(self) -> dict[int, str]:
-        return {0: "pixels", 1: "nodes", 2: "counts", 4: "counters"}
+        return {
+            Buffer.COUNTED_PIXELS: "pixels",
+            Buffer.COUNTED_NODES: "nodes",
+            Buffer.COUNTED_COUNTS: "counts",
+            Buffer.COUNTED_COUNTERS: "counters",
+        }
 
     def _capacity_uniform(self) -> int:
         return self._last.get("capacity", 0)
@@ -279,7 +285,13 @@ class SBuffer(DynamicFragmentBuffer):
     }
 
     def _bindings(self) -> dict[int, str]:
-        return {0: "pixels", 1: "nodes", 2: "counts", 4: "counters", 5: "group_base"}
+        return {
+            Buffer.COUNTED_PIXELS: "pixels",
+            Buffer.COUNTED_NODES: "nodes",
+            Buffer.COUNTED_COUNTS: "counts",
+            Buffer.COUNTED_COUNTERS: "counters",
+            Buffer.COUNTED_GROUP_BASE: "group_base",
+        }
 
     def template_vars(self) -> dict:
         """Adds the number of counters S."""
@@ -297,9 +309,9 @@ class SBuffer(DynamicFragmentBuffer):
         self._fill.run(self._bufs["groups"], s, 0)
         frame.ctx.memory_barrier()
         prog = frame.renderer.shaders.compute("counted/sbuffer_address.comp.j2", counters=s)
-        self._bufs["pixels"].bind_to_storage_buffer(0)
-        self._bufs["counts"].bind_to_storage_buffer(2)
-        self._bufs["groups"].bind_to_storage_buffer(5)
+        self._bufs["pixels"].bind_to_storage_buffer(Buffer.COUNTED_PIXELS)
+        self._bufs["counts"].bind_to_storage_buffer(Buffer.COUNTED_COUNTS)
+        self._bufs["groups"].bind_to_storage_buffer(Buffer.COUNTED_GROUPS)
         prog["gua_pixel_count"] = n
         prog.run(*dispatch_grid(math.ceil(n / 256)))
         frame.ctx.memory_barrier()
@@ -341,7 +353,12 @@ class PagedLinkedLists(_CountedStorage):
         self._want = 0  # pool size requested for the next prepare()
 
     def _bindings(self) -> dict[int, str]:
-        return {0: "pixels", 1: "nodes", 2: "links", 4: "counters"}
+        return {
+            Buffer.COUNTED_PIXELS: "pixels",
+            Buffer.COUNTED_NODES: "nodes",
+            Buffer.COUNTED_LINKS: "links",
+            Buffer.COUNTED_COUNTERS: "counters",
+        }
 
     def _capacity_uniform(self) -> int:
         return self.capacity

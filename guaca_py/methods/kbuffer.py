@@ -11,6 +11,7 @@ from __future__ import annotations
 from ..gpu_counters import CounterBlock
 from ..limits import require_bytes
 from ..pipeline.settings import Setting
+from ..shaders.slots import Buffer
 from .approximate import fill_uint_buffer
 from .base import LOCK_SETTING, TransparencyMethod, resolve_lock
 
@@ -75,9 +76,9 @@ class KBuffer(TransparencyMethod):
         self._counters.reset()
 
     def _bind(self) -> None:
-        self._heads.bind_to_storage_buffer(0)
-        self._slots.bind_to_storage_buffer(1)
-        self._counters.bind(2)
+        self._heads.bind_to_storage_buffer(Buffer.KBUFFER_HEADS)
+        self._slots.bind_to_storage_buffer(Buffer.KBUFFER_SLOTS)
+        self._counters.bind(Buffer.KBUFFER_COUNTERS)
 
     def render_transparent(self, frame) -> None:
         """One geometry pass against the opaque depth (writes off); every fragment tries to insert."""

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from ..limits import require_bytes
 from ..pipeline.settings import Setting, positive
+from ..shaders.slots import Buffer
 from .peeling import PeelingMethod
 
 NODE_BYTES = 32  # 8 payload words
@@ -116,9 +117,9 @@ class MultiLayerDepthPeeling(PeelingMethod):
         super().prepare(frame)
 
     def _bind_step_storage(self, frame) -> None:
-        self._slots.bind_to_storage_buffer(0)
-        self._nodes.bind_to_storage_buffer(1)
-        self._dropped.bind_to_storage_buffer(5)
+        self._slots.bind_to_storage_buffer(Buffer.MULTILAYER_SLOTS)
+        self._nodes.bind_to_storage_buffer(Buffer.MULTILAYER_NODES)
+        self._dropped.bind_to_storage_buffer(Buffer.MULTILAYER_DROPPED)
 
     # ------------------------------------------------------------------ passes
     def render_transparent(self, frame) -> None:

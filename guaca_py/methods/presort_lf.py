@@ -9,6 +9,7 @@ from ..gpu_counters import CounterBlock
 from ..limits import pool_node_limit
 from ..pipeline.settings import Setting, non_negative, positive
 from ..shaders import set_uniform, set_uniforms
+from ..shaders.slots import Buffer, Image
 from .base import TransparencyMethod
 
 NODE_PAYLOAD_BYTES = 32  # depth + 7 payload words, see abuffer/layout.glsl.j2
@@ -103,8 +104,8 @@ class PreSortLF(TransparencyMethod):
         self._counters.reset(alloc=1)  # node 0 is the null link
         self._counts = None
         clear = frame.renderer.shaders.compute("abuffer/clear.comp.j2")
-        self._links.bind_to_storage_buffer(0)
-        self._cull.bind_to_image(0, read=False, write=True)
+        self._links.bind_to_storage_buffer(Buffer.ABUFFER_LINKS)
+        self._cull.bind_to_image(Image.CULL_DEPTH, read=False, write=True)
         set_uniforms(
             clear,
             (
@@ -118,9 +119,9 @@ class PreSortLF(TransparencyMethod):
         frame.ctx.memory_barrier()
 
     def _bind(self) -> None:
-        self._links.bind_to_storage_buffer(0)
-        self._nodes.bind_to_storage_buffer(1)
-        self._counters.bind(2)
+        self._links.bind_to_storage_buffer(Buffer.ABUFFER_LINKS)
+        self._nodes.bind_to_storage_buffer(Buffer.ABUFFER_NODES)
+        self._counters.bind(Buffer.ABUFFER_COUNTERS)
 
     def threshold(self) -> float:
         """Insertion saturation threshold; above 1 means never saturate."""
@@ -135,7 +136,7 @@ class PreSortLF(TransparencyMethod):
         frame.ctx.enable(mgl.DEPTH_TEST)
         frame.ctx.depth_func = "<"
         self._bind()
-        self._cull.bind_to_image(0, read=True, write=True)
+        self._cull.bind_to_image(Image.CULL_DEPTH, read=True, write=True)
         frame.draw_transparent(
             {
                 "gua_ab_capacity": self.capacity,

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from ..limits import require_bytes
 from ..pipeline.settings import Setting
+from ..shaders.slots import Buffer
 from .approximate import ForwardBlendMethod, fill_uint_buffer
 
 
@@ -78,13 +79,13 @@ class StochasticTransparency(ForwardBlendMethod):
             ctx.enable(mgl.DEPTH_TEST)
             ctx.disable(mgl.BLEND)
             ctx.depth_func = "<"
-            self._depth.bind_to_storage_buffer(0)
+            self._depth.bind_to_storage_buffer(Buffer.STOCHASTIC_DEPTH)
             with self.samples_query(ctx, "depth_pass"):  # reported beside 'blended' (finish)
                 frame.draw_transparent(uniforms)
             g["depth_only"].depth_mask = True
             ctx.memory_barrier()
             self._phase = "accum"
-            self._depth.bind_to_storage_buffer(0)
+            self._depth.bind_to_storage_buffer(Buffer.STOCHASTIC_DEPTH)
             self._blended_pass(frame, uniforms)
         finally:
             self._phase = "composite"

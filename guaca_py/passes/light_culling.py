@@ -13,6 +13,7 @@ from ..gpu_counters import UploadBuffer
 from ..pipeline.draw_cache import freeze
 from ..pipeline.settings import Setting, positive
 from ..shaders import set_uniform, set_uniforms
+from ..shaders.slots import Buffer, Image, Texture
 from .base import (
     GL_SHADER_IMAGE_ACCESS_BARRIER_BIT,
     GL_TEXTURE_FETCH_BARRIER_BIT,
@@ -28,7 +29,6 @@ RING_SEGMENTS = 16  # proxy: sides of the circumscribed polygon around the light
 # Largest distance of a proxy vertex from the light, in units of its range.
 PROXY_EXTENT = 1.0 / (math.cos(math.pi / RING_SEGMENTS) * math.cos(math.pi / (2 * ARC_SEGMENTS)))
 PROXY_VERTICES = (ARC_SEGMENTS + 2) * RING_SEGMENTS * 6
-LIGHT_GRID_UNIT = 31  # texture unit of the grid: above the G-buffer (0-3), method (4-7) and material (8+) units
 _PLANE_MARGIN = 1e-3  # relative: proxies this close to the near/far plane count as crossing it
 # up to this many lights the light table is kept while their values stay the same; comparing every
 # field costs more than gathering the table past ~5 lights (2 lights: 7.6 against 16.8 us, 16: 58 against
@@ -184,8 +184,8 @@ class LightCullingPass(Pass):
             masks[i // 32] |= np.uint32(1 << (i % 32))
         self._everywhere.upload(masks.tobytes(), min_size=masks.nbytes)
         clear = self.renderer.shaders.compute("light_grid/clear.comp.j2")
-        self._grid.bind_to_image(0, read=False, write=True)
-        self._everywhere.bind(0)
+        self._grid.bind_to_image(Image.LIGHT_GRID, read=False, write=True)
+        self._everywhere.bind(Buffer.LIGHT_GRID_EVERYWHERE)
         set_uniform(clear, "gua_grid_dims", (tw, th, self.layers_allocated))
         clear.run(-(-tw // 8), -(-th // 8), self.layers_allocated)
         self.ctx.memory_barrier(_GRID_BARRIERS)
@@ -202,8 +202,8 @@ class LightCullingPass(Pass):
             )
             self._fbo.use()
             self.ctx.disable(mgl.DEPTH_TEST | mgl.BLEND | mgl.CULL_FACE)
-            self._grid.bind_to_image(0, read=True, write=True)
-            self._lights.bind(3)
+            self._grid.bind_to_image(Image.LIGHT_GRID, read=True, write=True)
+            self._lights.bind(Buffer.LIGHTS)
             vao = self._vaos.get(prog.glo)
             if vao is None:
                 vao = self._vaos[prog.glo] = self.ctx.vertex_array(prog, [])
@@ -335,13 +335,13 @@ class LightCullingPass(Pass):
     def bind(self, frame, prog) -> None:
         """Bind the light list (and grid, when built) for a shading program."""
         lg = frame.resources["light_grid"]
-        lg["buffer"].bind_to_storage_buffer(3)
+        lg["buffer"].bind_to_storage_buffer(Buffer.LIGHTS)
         set_uniform(prog, "gua_light_count", lg["count"])
         # its own unit even without a grid (no sampler type may share a unit with another);
         # with 0 layers nothing samples it
-        if set_uniform(prog, "gua_light_bits", LIGHT_GRID_UNIT):
+        if set_uniform(prog, "gua_light_bits", Texture.LIGHT_GRID):
             if lg["grid"] is not None:
-                lg["grid"].use(location=LIGHT_GRID_UNIT)
+                lg["grid"].use(location=Texture.LIGHT_GRID)
             set_uniform(prog, "gua_tile_size", lg["tile_size"])
             set_uniform(prog, "gua_light_layers", lg["layers"])
 
@@ -373,4 +373,4 @@ class LightCullingPass(Pass):
         self._lights.release()
 
 
-__all__ = ["LightCullingPass", "MODES", "PROXY_EXTENT", "LIGHT_GRID_UNIT"]
+__all__ = ["LightCullingPass", "MODES", "PROXY_EXTENT"]
