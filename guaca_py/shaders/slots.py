@@ -79,13 +79,15 @@ class Buffer(Kind):
     ABUFFER_LINKS = Slot(0, "method", "A-buffer list heads and links (presort_lf family): abuffer/layout.glsl.j2")
     ABUFFER_NODES = Slot(1, "method", "A-buffer node pool (presort_lf family): abuffer/layout.glsl.j2")
     ABUFFER_COUNTERS = Slot(2, "method", "A-buffer frame counters (presort_lf family): abuffer/layout.glsl.j2")
-    COUNTED_PIXELS = Slot(0, "method", "per-pixel offsets, ranges or page heads (dfb, sbuffer, paged_ll)")
+    COUNTED_PIXELS = Slot(
+        0, "method", "per-pixel offsets, ranges or page heads (dfb, sbuffer, paged_ll): counted/layout.glsl.j2"
+    )
     COUNTED_NODES = Slot(1, "method", "fragment payload pool (dfb, sbuffer, paged_ll): counted/layout.glsl.j2")
     COUNTED_COUNTS = Slot(2, "method", "per-pixel fragment counts (dfb, sbuffer): counted/layout.glsl.j2")
     COUNTED_LINKS = Slot(2, "method", "page links (paged_ll, whose layout has no counts): counted/layout.glsl.j2")
     COUNTED_COUNTERS = Slot(4, "method", "frame counters (dfb, sbuffer, paged_ll): counted/layout.glsl.j2")
-    COUNTED_GROUP_BASE = Slot(5, "method", "sbuffer: start of each counter group's region (geometry passes)")
-    COUNTED_GROUPS = Slot(5, "method", "sbuffer: counter group totals, counted/sbuffer_address.comp.j2 only")
+    COUNTED_GROUP_BASE = Slot(5, "method", "sbuffer: start of each counter group's region: counted/layout.glsl.j2")
+    COUNTED_GROUPS = Slot(5, "method", "sbuffer: counter group totals: counted/sbuffer_address.comp.j2")
     KBUFFER_HEADS = Slot(0, "method", "k-buffer per-pixel lock and count: approx/kbuffer_layout.glsl.j2")
     KBUFFER_SLOTS = Slot(1, "method", "k-buffer per-pixel fragment slots: approx/kbuffer_layout.glsl.j2")
     KBUFFER_COUNTERS = Slot(2, "method", "k-buffer frame counters: approx/kbuffer_layout.glsl.j2")
@@ -104,7 +106,9 @@ class Buffer(Kind):
     RASTER_STATE = Slot(11, "raster", "queue counters and indirect dispatch arguments: raster/state.glsl.j2")
     RASTER_LARGE = Slot(12, "raster", "triangles queued for the bin stage: raster/setup.comp.j2, raster/bin.comp.j2")
     RASTER_JOBS = Slot(13, "raster", "tile jobs of large triangles: raster/bin.comp.j2, raster/fine.comp.j2")
-    RASTER_BUCKETS = Slot(14, "raster", "the order stage's bucket counts: raster/order.comp.j2, order_scan.comp.j2")
+    RASTER_BUCKETS = Slot(
+        14, "raster", "the order stage's bucket counts: raster/order.comp.j2, raster/order_scan.comp.j2"
+    )
     RASTER_ORDER = Slot(15, "raster", "triangle indices in drawing order: raster/order.comp.j2, raster/setup.comp.j2")
     FILL_TARGET = Slot(0, "kernel", "the buffer a fill kernel sets: counted/fill.comp.j2, approx/fill.comp.j2")
     SCAN_IN = Slot(0, "kernel", "prefix sum input: counted/scan_blocks.comp.j2 (prefix_sum.py)")
@@ -128,8 +132,12 @@ class Image(Kind):
         "kernel": Group("a pass's own programs that bind no other image: each starts at 0"),
     }
 
-    CULL_DEPTH = Slot(0, "method", "A-buffer saturation depth (presort_lf family): abuffer/submit.glsl.j2, clear")
-    PEEL_ORDERED_SLOTS = Slot(0, "method", "peeling state read in primitive order (interlock): peeling/ordered", 5)
+    CULL_DEPTH = Slot(
+        0, "method", "A-buffer saturation depth (presort_lf family): abuffer/submit.glsl.j2, abuffer/clear.comp.j2"
+    )
+    PEEL_ORDERED_SLOTS = Slot(
+        0, "method", "peeling state read in primitive order (interlock): peeling/ordered.glsl.j2", 5
+    )
     PEEL_ACC_FRONT = Slot(0, "method", "peeling front accumulation: peeling/step.comp.j2")
     PEEL_ACC_BACK = Slot(1, "method", "dual peeling back accumulation: peeling/step.comp.j2")
     PEEL_BOUNDS = Slot(2, "method", "peeling per-pixel key bounds: peeling/step.comp.j2")
@@ -146,7 +154,7 @@ class Texture(Kind):
 
     GROUPS = {
         "pass": Group(
-            "a full-screen pass's inputs in order (composite: the G-buffer's albedo, normal, material, depth)",
+            "the full-screen passes (composite: the G-buffer's albedo, normal, material, depth; tone mapping, FXAA)",
             frozenset({"method", "lights"}),
         ),
         "method": Group(
@@ -163,18 +171,22 @@ class Texture(Kind):
         "kernel": Group("programs of their own that bind no other texture: each starts at 0"),
     }
 
-    PASS_INPUTS = Slot(0, "pass", "a full-screen pass's input textures, in order: passes/base.py", 4)
+    PASS_INPUTS = Slot(
+        0, "pass", "a full-screen pass's inputs in order (composite: the G-buffer layers): passes/base.py", 4
+    )
     PEEL_FRONT = Slot(4, "method", "peeling front accumulation in the composite: peeling/resolve.glsl.j2")
     PEEL_BACK = Slot(5, "method", "dual peeling back accumulation in the composite: peeling/resolve.glsl.j2")
     APPROX_ACCUM = Slot(4, "method", "blended methods' accumulation in the composite: approx/blend_resolve.glsl.j2")
     APPROX_WEIGHT = Slot(5, "method", "blended methods' weights in the composite: approx/blend_resolve.glsl.j2")
     PEEL_BOUNDS = Slot(4, "method", "peeling key bounds in the geometry passes: peeling/common.glsl.j2")
     PEEL_OPAQUE = Slot(5, "method", "G-buffer depth in peeling geometry passes and steps: peeling/common.glsl.j2")
-    PEEL_RANGE = Slot(6, "method", "peeling compositing range in the geometry passes: peeling/composite_range")
+    PEEL_RANGE = Slot(6, "method", "peeling compositing range in the geometry passes: peeling/composite_range.glsl.j2")
     RASTER_DEPTH = Slot(7, "raster", "G-buffer depth for the depth test: raster/fragment_host.glsl.j2")
     MATERIALS = Slot(8, "material", "a material's sampler2D uniforms, in order: renderer.apply_material", 23)
     LIGHT_GRID = Slot(31, "lights", "the light grid: shading/lighting.glsl.j2, post/debug_light_count.frag.j2")
-    PRESENT_INPUT = Slot(0, "kernel", "the frame (or HUD) drawn to the host: present/copy.frag.j2, overlay.frag.j2")
+    PRESENT_INPUT = Slot(
+        0, "kernel", "the frame (or HUD) drawn to the host: present/copy.frag.j2, present/overlay.frag.j2"
+    )
     SAMPLE_PROBE = Slot(0, "kernel", "the multisampled probe read back: antialiasing/read_positions.comp.j2")
 
 
@@ -187,10 +199,15 @@ def template_globals() -> dict[str, type[Kind]]:
 
 
 def markdown_table() -> str:
-    """The slot table as Markdown (docs/slots.md), one row per slot."""
+    """The slot table and its groups as Markdown (docs/slots.md)."""
     rows = ["| kind | name | number | group | used by |", "| --- | --- | --- | --- | --- |"]
     for kind in KINDS:
         for s in kind.TABLE.values():
             number = f"{s.number}-{s.number + s.count - 1}" if s.count > 1 else str(s.number)
             rows.append(f"| {kind.__name__} | `{s.name}` | {number} | {s.group} | {s.used_by} |")
+    rows += ["", "| kind | group | bound in | meets in one program |", "| --- | --- | --- | --- |"]
+    for kind in KINDS:
+        for name, group in kind.GROUPS.items():
+            meets = ", ".join(sorted(group.meets)) or "no other group"
+            rows.append(f"| {kind.__name__} | {name} | {group.programs} | {meets} |")
     return "\n".join(rows) + "\n"
