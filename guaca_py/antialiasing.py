@@ -14,6 +14,7 @@ import numpy as np
 from .errors import ConfigError, UnsupportedMethodError
 from .numeric import Range
 from .pipeline.settings import Setting, resolve_settings
+from .shaders.slots import Buffer, Texture
 
 SAMPLE_COUNTS = (1, 2, 4, 8)
 SETTINGS = {
@@ -82,7 +83,7 @@ def sample_positions(ctx, samples: int, shaders) -> tuple[tuple[float, float], .
     As many as it really allocates: a device may round a count up (Mesa llvmpipe makes 4 of 2), and
     the G-buffer, the coverage masks and the resolve then hold the larger count. The compute
     rasterizer tests coverage at these points, so its masks name the same samples as the hardware's.
-    Binds a framebuffer, texture unit 0 and storage buffer 0: call it before a frame, not inside one.
+    Binds a framebuffer, Texture.SAMPLE_PROBE and Buffer.SAMPLE_POSITIONS: call it before a frame, not inside one.
     """
     key = (id(ctx), samples)
     if key not in _positions:
@@ -101,9 +102,9 @@ def sample_positions(ctx, samples: int, shaders) -> tuple[tuple[float, float], .
         vao.render(vertices=3)
         read = shaders.compute("antialiasing/read_positions.comp.j2")
         buf = ctx.buffer(reserve=8 + 8 * _MAX_SAMPLES)  # the count, then vec2s from offset 8 (std430)
-        tex.use(location=0)
-        read["gua_probe"] = 0
-        buf.bind_to_storage_buffer(0)
+        tex.use(location=Texture.SAMPLE_PROBE)
+        read["gua_probe"] = Texture.SAMPLE_PROBE
+        buf.bind_to_storage_buffer(Buffer.SAMPLE_POSITIONS)
         read.run(1, 1, 1)
         ctx.memory_barrier()
         data = buf.read()

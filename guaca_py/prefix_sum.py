@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 
+from .shaders.slots import Buffer
+
 MAX_GROUPS_X = 65535  # guaranteed minimum of GL_MAX_COMPUTE_WORK_GROUP_COUNT per dimension
 
 
@@ -24,7 +26,7 @@ class GpuFill:
         if n <= 0:
             return
         prog = self.shaders.compute("counted/fill.comp.j2")
-        buffer.bind_to_storage_buffer(0)
+        buffer.bind_to_storage_buffer(Buffer.FILL_TARGET)
         prog["gua_n"] = n
         prog["gua_value"] = value
         prog.run(*dispatch_grid(math.ceil(n / 256)))
@@ -69,9 +71,9 @@ class PrefixSum:
         blocks = math.ceil(n_out / self.BLOCK)
         sums = self._aux_buffer(level, blocks if blocks > 1 else 1)
         scan = self.shaders.compute("counted/scan_blocks.comp.j2", **self._vars())
-        src.bind_to_storage_buffer(0)
-        dst.bind_to_storage_buffer(1)
-        sums.bind_to_storage_buffer(2)
+        src.bind_to_storage_buffer(Buffer.SCAN_IN)
+        dst.bind_to_storage_buffer(Buffer.SCAN_OUT)
+        sums.bind_to_storage_buffer(Buffer.SCAN_SUMS)
         scan["gua_n_in"] = n_in
         scan["gua_n_out"] = n_out
         scan["gua_write_sums"] = blocks > 1
@@ -81,8 +83,8 @@ class PrefixSum:
             return
         self._level(sums, sums, blocks, blocks, level + 1)  # block totals -> block offsets
         add = self.shaders.compute("counted/scan_add.comp.j2", **self._vars())
-        dst.bind_to_storage_buffer(1)
-        sums.bind_to_storage_buffer(2)
+        dst.bind_to_storage_buffer(Buffer.SCAN_OUT)
+        sums.bind_to_storage_buffer(Buffer.SCAN_SUMS)
         add["gua_n_out"] = n_out
         add.run(*dispatch_grid(blocks))
         self.ctx.memory_barrier()

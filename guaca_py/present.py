@@ -5,6 +5,7 @@ from __future__ import annotations
 import moderngl
 
 from .errors import GuacaError
+from .shaders.slots import Texture
 
 
 class Presenter:
@@ -46,8 +47,8 @@ class Presenter:
             prog = self.program()
             prev_filter = color.filter
             color.filter = (moderngl.LINEAR, moderngl.LINEAR)
-            color.use(location=0)
-            prog["gua_input"] = 0
+            color.use(location=Texture.PRESENT_INPUT)
+            prog["gua_input"] = Texture.PRESENT_INPUT
             prog["gua_viewport"] = tuple(float(v) for v in vp)
             self.device.fullscreen(prog)
             color.filter = prev_filter

@@ -319,7 +319,6 @@ def test_gpu_variants_at_8_samples_pass_the_reference_compiler(aa_renderers, tmp
     """The NVIDIA variants (64-bit insertion, ballots, interlock) at 8 samples, which this device cannot build;
     the 64-bit list walk passes nearer records with plain loads."""
     from guaca_py.passes import composite
-    from guaca_py.passes.base import OUTPUT_IMAGE_UNIT
     from guaca_py.pipeline.drawlist import build_draw_list
     from guaca_py.renderer import method_settings
 
@@ -344,7 +343,7 @@ def test_gpu_variants_at_8_samples_pass_the_reference_compiler(aa_renderers, tmp
     for stage, (template, variables) in r.raster.hardware.program(m, draw, True).items():
         sources["frag" if stage == "fragment_shader" else "vert"] = r.shaders.render(template, **variables)
     cvars = dict(seen, method_extensions=m.resolve_extensions(), **m.template_vars())
-    cvars.update(aa_samples=8, output_image_unit=OUTPUT_IMAGE_UNIT, output_format="rgba32f")
+    cvars.update(aa_samples=8, output_format="rgba32f")
     sources["comp"] = r.shaders.render("composite/shade_composite.comp.j2", **cvars)
     assert "gl_SampleMaskIn" in sources["frag"] and "sampler2DMS" in sources["comp"]
     assert "uint64_t" in sources["frag"] or m.link_bytes == 4

@@ -57,6 +57,7 @@ def brdf_cos(n, v, l, albedo, rough, metal, diffuse="transmittance"):
 def glsl_brdf(gl_context):
     """Evaluate gua_brdf_cos (and Schlick F) on the GPU for a batch of light directions."""
     from guaca_py.shaders import ShaderLibrary
+    from guaca_py.shaders.slots import Buffer
 
     prog = ShaderLibrary(gl_context).compute("shading/brdf_eval.comp.j2")
 
@@ -66,8 +67,8 @@ def glsl_brdf(gl_context):
         if cosines is not None:
             data[:, 3] = cosines
         bi, bo = gl_context.buffer(data.tobytes()), gl_context.buffer(reserve=data.nbytes)
-        bi.bind_to_storage_buffer(0)
-        bo.bind_to_storage_buffer(1)
+        bi.bind_to_storage_buffer(Buffer.BRDF_EVAL_IN)
+        bo.bind_to_storage_buffer(Buffer.BRDF_EVAL_OUT)
         for name, value in (
             ("gua_n", tuple(map(float, n))),
             ("gua_v", tuple(map(float, v))),

@@ -10,12 +10,13 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..numeric import Range, number_hint
+from ..shaders.slots import Texture
 from ..yaml_source import read_text
 from . import glsl
 
-#: sampler2D uniforms a material may declare: each takes its own texture unit, from 8 up to the
-#: light grid's unit 31 (renderer.apply_material, passes/light_culling.py)
-MAX_SAMPLERS = 23
+#: sampler2D uniforms a material may declare: each takes its own texture unit of Texture.MATERIALS
+#: (raster/material_program.py: apply_material)
+MAX_SAMPLERS = Texture.TABLE["MATERIALS"].count
 #: uniform type -> number of floats (sampler2D holds a texture path instead)
 UNIFORM_SIZES = {"float": 1, "int": 1, "vec2": 2, "vec3": 3, "vec4": 4, "mat4": 16, "sampler2D": 0}
 STAGES = ("displacement", "visibility")
@@ -307,7 +308,8 @@ def load_material(path: str | Path) -> MaterialDescription:
                 path,
                 line,
                 uname,
-                f"a material's textures take texture units 8 to {7 + MAX_SAMPLERS} (the others are the passes'); "
+                f"a material's textures take texture units {Texture.MATERIALS} to "
+                f"{Texture.MATERIALS + MAX_SAMPLERS - 1} (the others are the passes'); "
                 "pack several maps into the channels of one texture",
             )
     methods: dict[str, list[Method]] = {}

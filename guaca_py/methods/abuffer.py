@@ -29,6 +29,7 @@ from ..pipeline.settings import Setting, auto_or_positive_mb, non_negative, posi
 from ..raster.choice import compute_kernels_draw
 from ..registry import register
 from ..shaders import set_uniform, set_uniforms
+from ..shaders.slots import Buffer, Image
 from .base import LOCK_SETTING, MethodSpec, TransparencyMethod, resolve_lock
 
 NODE_PAYLOAD_BYTES = 32  # depth + 7 payload words, see abuffer/layout.glsl.j2
@@ -161,8 +162,8 @@ class ABuffer(TransparencyMethod):
         self._counters.reset(alloc=1)  # node 0 is the null link
         self._counts = None
         clear = frame.programs.compute("abuffer/clear.comp.j2")
-        self._links.bind_to_storage_buffer(0)
-        self._cull.bind_to_image(0, read=False, write=True)
+        self._links.bind_to_storage_buffer(Buffer.ABUFFER_LINKS)
+        self._cull.bind_to_image(Image.CULL_DEPTH, read=False, write=True)
         set_uniforms(
             clear,
             (
@@ -176,9 +177,9 @@ class ABuffer(TransparencyMethod):
         frame.ctx.memory_barrier()
 
     def _bind(self) -> None:
-        self._links.bind_to_storage_buffer(0)
-        self._nodes.bind_to_storage_buffer(1)
-        self._counters.bind(2)
+        self._links.bind_to_storage_buffer(Buffer.ABUFFER_LINKS)
+        self._nodes.bind_to_storage_buffer(Buffer.ABUFFER_NODES)
+        self._counters.bind(Buffer.ABUFFER_COUNTERS)
 
     def threshold(self) -> float:
         """Insertion saturation threshold; above 1 means never saturate."""
@@ -193,7 +194,7 @@ class ABuffer(TransparencyMethod):
         frame.ctx.enable(mgl.DEPTH_TEST)
         frame.ctx.depth_func = "<"
         self._bind()
-        self._cull.bind_to_image(0, read=True, write=True)
+        self._cull.bind_to_image(Image.CULL_DEPTH, read=True, write=True)
         frame.draw_transparent(
             {
                 "gua_ab_capacity": self.capacity,

@@ -31,6 +31,7 @@ from ..limits import require_bytes
 from ..pipeline.settings import Setting
 from ..registry import register
 from ..shaders import set_uniform
+from ..shaders.slots import Buffer, Texture
 from .base import MethodSpec, TransparencyMethod
 
 _FILL_GROUPS_MAX = 4096
@@ -39,7 +40,7 @@ _FILL_GROUPS_MAX = 4096
 def fill_uint_buffer(frame, buffer, count: int, value: int) -> None:
     """Set the first `count` uint words of `buffer` to `value` on the GPU."""
     prog = frame.programs.compute("approx/fill.comp.j2")
-    buffer.bind_to_storage_buffer(0)
+    buffer.bind_to_storage_buffer(Buffer.FILL_TARGET)
     prog["gua_fill_count"] = count
     prog["gua_fill_value"] = value
     prog.run(max(1, min(_FILL_GROUPS_MAX, math.ceil(count / 256))), 1, 1)
@@ -231,13 +232,13 @@ class ForwardBlend(TransparencyMethod):
             ctx.enable(mgl.DEPTH_TEST)
             ctx.disable(mgl.BLEND)
             ctx.depth_func = "<"
-            self._depth.bind_to_storage_buffer(0)
+            self._depth.bind_to_storage_buffer(Buffer.STOCHASTIC_DEPTH)
             with self.samples_query(ctx, "depth_pass"):  # reported beside 'blended' (finish)
                 frame.draw_transparent(uniforms)
             g.depth_only.depth_mask = True
             ctx.memory_barrier()
             self._phase = "accum"
-            self._depth.bind_to_storage_buffer(0)
+            self._depth.bind_to_storage_buffer(Buffer.STOCHASTIC_DEPTH)
             self._blended_pass(frame, uniforms)
         finally:
             self._phase = "composite"
@@ -273,8 +274,10 @@ class ForwardBlend(TransparencyMethod):
         return v
 
     def bind_composite(self, frame, program) -> None:
-        """Accumulation targets on the method's texture units (4+)."""
-        for unit, (name, tex) in enumerate(zip(("gua_approx_accum", "gua_approx_weight"), self._targets), start=4):
+        """Accumulation targets on the method's texture units."""
+        for unit, name, tex in zip(
+            (Texture.APPROX_ACCUM, Texture.APPROX_WEIGHT), ("gua_approx_accum", "gua_approx_weight"), self._targets
+        ):
             tex.use(location=unit)
             set_uniform(program, name, unit)
 

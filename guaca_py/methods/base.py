@@ -92,8 +92,8 @@ class TransparencyMethod:
     of the composite pass, when lights are culled (frame.bind_lights(prog) binds them and
     frame.shading_vars() gives the template variables of shading/lighting.glsl.j2).
 
-    Texture units: 0-3 G-buffer inputs of the composite, 4-7 the method's own composite
-    inputs, 8+ material textures. SSBO bindings: 0-2 method storage, 3 lights, 4-7 method.
+    Buffers, images and textures bind at the named slots of guaca_py/shaders/slots.py (the
+    "method" groups there), never at numbers of their own.
 
     Each concrete class derives from this one directly and is registered through MethodSpec
     records, one per method id it implements; what its methods share beyond this interface it

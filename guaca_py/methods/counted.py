@@ -21,6 +21,7 @@ from ..pipeline.settings import Setting, auto_or_positive_mb, non_negative, posi
 from ..prefix_sum import GpuFill, PrefixSum, dispatch_grid
 from ..registry import register
 from ..shaders import set_uniform
+from ..shaders.slots import Buffer
 from .base import MethodSpec, TransparencyMethod
 
 PAYLOAD_BYTES = 32  # common/payload_pack.glsl.j2: 8 words per fragment
@@ -46,9 +47,25 @@ _PHASE_TEMPLATES = {
 }
 # storage binding -> buffer name, per layout (counted/*.glsl.j2)
 _BINDINGS = {
-    "dfb": {0: "pixels", 1: "nodes", 2: "counts", 4: "counters"},
-    "sbuffer": {0: "pixels", 1: "nodes", 2: "counts", 4: "counters", 5: "group_base"},
-    "paged": {0: "pixels", 1: "nodes", 2: "links", 4: "counters"},
+    "dfb": {
+        Buffer.COUNTED_PIXELS: "pixels",
+        Buffer.COUNTED_NODES: "nodes",
+        Buffer.COUNTED_COUNTS: "counts",
+        Buffer.COUNTED_COUNTERS: "counters",
+    },
+    "sbuffer": {
+        Buffer.COUNTED_PIXELS: "pixels",
+        Buffer.COUNTED_NODES: "nodes",
+        Buffer.COUNTED_COUNTS: "counts",
+        Buffer.COUNTED_COUNTERS: "counters",
+        Buffer.COUNTED_GROUP_BASE: "group_base",
+    },
+    "paged": {
+        Buffer.COUNTED_PIXELS: "pixels",
+        Buffer.COUNTED_NODES: "nodes",
+        Buffer.COUNTED_LINKS: "links",
+        Buffer.COUNTED_COUNTERS: "counters",
+    },
 }
 
 
@@ -206,9 +223,9 @@ class CountedStorage(TransparencyMethod):
         self._fill.run(self._bufs["groups"], s, 0)
         frame.ctx.memory_barrier()
         prog = frame.programs.compute("counted/sbuffer_address.comp.j2", counters=s)
-        self._bufs["pixels"].bind_to_storage_buffer(0)
-        self._bufs["counts"].bind_to_storage_buffer(2)
-        self._bufs["groups"].bind_to_storage_buffer(5)
+        self._bufs["pixels"].bind_to_storage_buffer(Buffer.COUNTED_PIXELS)
+        self._bufs["counts"].bind_to_storage_buffer(Buffer.COUNTED_COUNTS)
+        self._bufs["groups"].bind_to_storage_buffer(Buffer.COUNTED_GROUPS)
         prog["gua_pixel_count"] = n
         prog.run(*dispatch_grid(math.ceil(n / 256)))
         frame.ctx.memory_barrier()

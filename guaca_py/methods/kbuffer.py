@@ -14,6 +14,7 @@ from ..gpu_counters import CounterBlock
 from ..limits import require_bytes
 from ..pipeline.settings import Setting
 from ..registry import register
+from ..shaders.slots import Buffer
 from .approximate import fill_uint_buffer
 from .base import LOCK_SETTING, MethodSpec, TransparencyMethod, resolve_lock
 
@@ -62,9 +63,9 @@ class KBuffer(TransparencyMethod):
         self._counters.reset()
 
     def _bind(self) -> None:
-        self._heads.bind_to_storage_buffer(0)
-        self._slots.bind_to_storage_buffer(1)
-        self._counters.bind(2)
+        self._heads.bind_to_storage_buffer(Buffer.KBUFFER_HEADS)
+        self._slots.bind_to_storage_buffer(Buffer.KBUFFER_SLOTS)
+        self._counters.bind(Buffer.KBUFFER_COUNTERS)
 
     def render_transparent(self, frame) -> None:
         """One geometry pass against the opaque depth (writes off); every fragment tries to insert."""

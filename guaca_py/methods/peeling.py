@@ -33,6 +33,7 @@ from ..gpu_counters import CounterBlock
 from ..pipeline.settings import Setting
 from ..registry import register
 from ..shaders import set_uniform
+from ..shaders.slots import Buffer, Image, Texture
 from .base import MethodSpec, TransparencyMethod
 
 # Counter words of peeling/counters.glsl.j2, in order.
@@ -42,7 +43,6 @@ EMPTY_NEAR_TIE = "uvec4(0u, 0u, 0u, GUA_TIE_MAX)"
 EMPTY_FAR = "uvec4(GUA_LOWEST, 0u, 0u, 0u)"
 ZERO = "uvec4(0u)"
 ORDERED_PHASES = ("nearest", "dual", "stencil")
-UNIT_BOUNDS, UNIT_OPAQUE, UNIT_RANGE = 4, 5, 6  # method texture units of the geometry programs
 _FETCH_EXT = "#extension GL_EXT_shader_framebuffer_fetch : require\n"
 _INTERLOCK_EXT = "#extension GL_ARB_fragment_shader_interlock : require\n"
 
@@ -234,16 +234,21 @@ class Peeling(TransparencyMethod):
         frame.set_frame_uniforms(prog)
         frame.bind_lights(prog)
         set_uniform(prog, "gua_threshold", self.composite_threshold())
-        if set_uniform(prog, "gua_peel_opaque", UNIT_OPAQUE):
-            frame.resources["gbuffer"].depth.use(location=UNIT_OPAQUE)
+        if set_uniform(prog, "gua_peel_opaque", Texture.PEEL_OPAQUE):
+            frame.resources["gbuffer"].depth.use(location=Texture.PEEL_OPAQUE)
         self._bind_step_storage(frame)
-        units = {"acc_front": 0, "acc_back": 1, "bounds": 2, "range": 3}
+        units = {
+            "acc_front": Image.PEEL_ACC_FRONT,
+            "acc_back": Image.PEEL_ACC_BACK,
+            "bounds": Image.PEEL_BOUNDS,
+            "range": Image.PEEL_RANGE,
+        }
         for name_, unit in units.items():
             if name_ in self._tex:
                 self._tex[name_].bind_to_image(unit, read=True, write=True)
         for i, n in enumerate(slots):
-            self._tex[n].bind_to_image(4 + i, read=True, write=True)
-        self._counters.bind(4)
+            self._tex[n].bind_to_image(Image.PEEL_STEP_SLOTS + i, read=True, write=True)
+        self._counters.bind(Buffer.PEEL_COUNTERS)
         prog.run(math.ceil(frame.width / 8), math.ceil(frame.height / 8), 1)
         frame.ctx.memory_barrier()
 
@@ -266,12 +271,16 @@ class Peeling(TransparencyMethod):
     def _common_uniforms(self, frame) -> dict:
         g = frame.resources["gbuffer"]
         if "bounds" not in self.phase_slots(self._phase):  # never sample a texture the pass renders to
-            self._tex["bounds"].use(location=UNIT_BOUNDS)
-        g.depth.use(location=UNIT_OPAQUE)
+            self._tex["bounds"].use(location=Texture.PEEL_BOUNDS)
+        g.depth.use(location=Texture.PEEL_OPAQUE)
         if "range" in self._tex:
-            self._tex["range"].use(location=UNIT_RANGE)
-        self._counters.bind(4)
-        return {"gua_peel_bounds": UNIT_BOUNDS, "gua_peel_opaque": UNIT_OPAQUE, "gua_peel_range": UNIT_RANGE}
+            self._tex["range"].use(location=Texture.PEEL_RANGE)
+        self._counters.bind(Buffer.PEEL_COUNTERS)
+        return {
+            "gua_peel_bounds": Texture.PEEL_BOUNDS,
+            "gua_peel_opaque": Texture.PEEL_OPAQUE,
+            "gua_peel_range": Texture.PEEL_RANGE,
+        }
 
     def geometry_pass(
         self, frame, phase: str, slots: list[str], draws=None, uniforms: dict | None = None, per_program=None
@@ -284,7 +293,7 @@ class Peeling(TransparencyMethod):
         else:
             self._dummy_fbo(frame).use()
             for i, n in enumerate(slots):
-                self._tex[n].bind_to_image(i, read=True, write=True)
+                self._tex[n].bind_to_image(Image.PEEL_ORDERED_SLOTS + i, read=True, write=True)
         ctx.disable(mgl.DEPTH_TEST | mgl.CULL_FACE)
         # With blending and depth test both off, llvmpipe takes a draw that covers a whole 64x64
         # tile for opaque and discards the tile's earlier draws, their image and buffer writes
@@ -389,7 +398,7 @@ class Peeling(TransparencyMethod):
 
     def bind_composite(self, frame, program) -> None:
         """Accumulations on the method's texture units."""
-        for unit, name in ((4, "acc_front"), (5, "acc_back")):
+        for unit, name in ((Texture.PEEL_FRONT, "acc_front"), (Texture.PEEL_BACK, "acc_back")):
             uname = "gua_peel_front" if name == "acc_front" else "gua_peel_back"
             if name in self._tex and set_uniform(program, uname, unit):
                 self._tex[name].use(location=unit)

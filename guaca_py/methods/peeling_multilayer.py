@@ -19,6 +19,7 @@ from __future__ import annotations
 from ..limits import require_bytes
 from ..pipeline.settings import Setting, auto_or_positive_mb, positive
 from ..registry import register
+from ..shaders.slots import Buffer
 from .base import MethodSpec
 from .peeling import PEEL_SETTINGS, Peeling, PeelKind
 
@@ -93,9 +94,9 @@ class NodePool:
 
     def bind(self) -> None:
         """Slots, pool and dropped depths on the storage bindings the insertion and the steps read."""
-        self._slots.bind_to_storage_buffer(0)
-        self._nodes.bind_to_storage_buffer(1)
-        self._dropped.bind_to_storage_buffer(5)
+        self._slots.bind_to_storage_buffer(Buffer.MULTILAYER_SLOTS)
+        self._nodes.bind_to_storage_buffer(Buffer.MULTILAYER_NODES)
+        self._dropped.bind_to_storage_buffer(Buffer.MULTILAYER_DROPPED)
 
     def memory(self) -> dict:
         """Slots, node pool (allocated and most used in one pass) and dropped depths, in bytes."""

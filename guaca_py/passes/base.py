@@ -10,6 +10,7 @@ import moderngl
 from ..pipeline.device import Device
 from ..pipeline.settings import Setting
 from ..shaders import set_uniform
+from ..shaders.slots import Image, Texture
 
 if TYPE_CHECKING:
     from ..pipeline.frame import FrameContext
@@ -91,7 +92,6 @@ IMAGE_OUTPUT_BARRIERS = (
     | GL_FRAMEBUFFER_BARRIER_BIT
 )
 
-OUTPUT_IMAGE_UNIT = 7  # image units below may be bound by methods (A-buffer saturation depth: 0)
 _IMAGE_FORMATS = {"f1": "rgba8", "f2": "rgba16f", "f4": "rgba32f"}
 
 
@@ -116,9 +116,7 @@ class FullscreenPass(Pass):
         """Compile `template` (default: the pass's) as this pass's kind of program."""
         template = template or self.template
         if self.compute:
-            variables = dict(
-                variables, output_image_unit=OUTPUT_IMAGE_UNIT, output_format=_IMAGE_FORMATS[self.target_dtype]
-            )
+            variables = dict(variables, output_format=_IMAGE_FORMATS[self.target_dtype])
             stages = {"compute_shader": (template, variables)}
         else:
             stages = {"vertex_shader": ("composite/fullscreen.vert.j2", {}), "fragment_shader": (template, variables)}
@@ -138,12 +136,12 @@ class FullscreenPass(Pass):
     def run_fullscreen(self, frame: FrameContext, prog, inputs: dict) -> moderngl.Texture:
         """Bind input textures to units, write every pixel of the target, return the output texture."""
         fbo = self.target(frame)
-        for unit, (uname, tex) in enumerate(inputs.items()):
+        for unit, (uname, tex) in enumerate(inputs.items(), start=Texture.PASS_INPUTS):
             tex.use(location=unit)
             set_uniform(prog, uname, unit)
         out = fbo.color_attachments[0]
         if self.compute:
-            out.bind_to_image(OUTPUT_IMAGE_UNIT, read=False, write=True)
+            out.bind_to_image(Image.PASS_OUTPUT, read=False, write=True)
             set_uniform(prog, "gua_size", (frame.width, frame.height))
             prog.run(-(-frame.width // 8), -(-frame.height // 8), 1)
             self.ctx.memory_barrier(IMAGE_OUTPUT_BARRIERS)  # later passes sample the result (or read it back)

@@ -12,10 +12,11 @@ import numpy as np
 from ..errors import DeviceError
 from ..gpu_counters import UploadBuffer
 from ..pipeline.draw_cache import freeze
-from ..pipeline.resources import LIGHT_GRID_UNIT, LIGHTS_BUFFER, LightGrid
+from ..pipeline.resources import LightGrid
 from ..pipeline.settings import Setting, positive
 from ..registry import register
 from ..shaders import mat_bytes, set_uniform, set_uniforms
+from ..shaders.slots import Buffer, Image
 from .base import (
     GL_SHADER_IMAGE_ACCESS_BARRIER_BIT,
     GL_TEXTURE_FETCH_BARRIER_BIT,
@@ -186,8 +187,8 @@ class LightCullingPass(Pass):
             masks[i // 32] |= np.uint32(1 << (i % 32))
         self._everywhere.upload(masks.tobytes(), min_size=masks.nbytes)
         clear = self.device.programs.compute("light_grid/clear.comp.j2")
-        self._grid.bind_to_image(0, read=False, write=True)
-        self._everywhere.bind(0)
+        self._grid.bind_to_image(Image.LIGHT_GRID, read=False, write=True)
+        self._everywhere.bind(Buffer.LIGHT_GRID_EVERYWHERE)
         set_uniform(clear, "gua_grid_dims", (tw, th, self.layers_allocated))
         clear.run(-(-tw // 8), -(-th // 8), self.layers_allocated)
         self.ctx.memory_barrier(_GRID_BARRIERS)
@@ -204,8 +205,8 @@ class LightCullingPass(Pass):
             )
             self._fbo.use()
             self.ctx.disable(mgl.DEPTH_TEST | mgl.BLEND | mgl.CULL_FACE)
-            self._grid.bind_to_image(0, read=True, write=True)
-            self._lights.bind(LIGHTS_BUFFER)
+            self._grid.bind_to_image(Image.LIGHT_GRID, read=True, write=True)
+            self._lights.bind(Buffer.LIGHTS)
             vao = self._vaos.get(prog.glo)
             if vao is None:
                 vao = self._vaos[prog.glo] = self.ctx.vertex_array(prog, [])
@@ -360,4 +361,4 @@ class LightCullingPass(Pass):
         self._lights.release()
 
 
-__all__ = ["LightCullingPass", "MODES", "PROXY_EXTENT", "LIGHT_GRID_UNIT"]
+__all__ = ["LightCullingPass", "MODES", "PROXY_EXTENT"]

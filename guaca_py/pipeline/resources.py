@@ -16,9 +16,7 @@ import moderngl
 import numpy as np
 
 from ..shaders import set_uniform
-
-LIGHTS_BUFFER = 3  # storage buffer of the packed lights
-LIGHT_GRID_UNIT = 31  # texture unit of the grid: above the G-buffer (0-3), method (4-7) and material (8+) units
+from ..shaders.slots import Buffer, Texture
 
 
 def unpack_grid(words: np.ndarray, count: int) -> np.ndarray:
@@ -57,13 +55,13 @@ class LightGrid:
 
     def bind(self, prog) -> None:
         """Bind the light list (and grid, when built) for a shading program."""
-        self.buffer.bind_to_storage_buffer(LIGHTS_BUFFER)
+        self.buffer.bind_to_storage_buffer(Buffer.LIGHTS)
         set_uniform(prog, "gua_light_count", self.count)
         # its own unit even without a grid (no sampler type may share a unit with another);
         # with 0 layers nothing samples it
-        if set_uniform(prog, "gua_light_bits", LIGHT_GRID_UNIT):
+        if set_uniform(prog, "gua_light_bits", Texture.LIGHT_GRID):
             if self.grid is not None:
-                self.grid.use(location=LIGHT_GRID_UNIT)
+                self.grid.use(location=Texture.LIGHT_GRID)
             set_uniform(prog, "gua_tile_size", self.tile_size)
             set_uniform(prog, "gua_light_layers", self.layers)
 

@@ -37,6 +37,7 @@ from ..gpu_timer import Timestamps
 from ..limits import require_bytes
 from ..pipeline.device import Device
 from ..shaders import set_uniform, set_uniforms
+from ..shaders.slots import Buffer, Texture
 from .material_program import apply_material, material_program
 from .material_support import compute_material
 
@@ -80,7 +81,6 @@ SMALL_AREA = 128  # candidate boxes up to this many pixels may be rasterized by 
 # strands out of their depth order (early termination then culled less: 4.6 -> 6.0 ms).
 SMALL_FRAGMENTS = 16.0
 MEDIUM_AREA = 1024  # larger boxes up to this many pixels by one 64-thread workgroup, without tiles
-DEPTH_UNIT = 7  # texture unit of the G-buffer depth (units 8+ hold material textures)
 VERTEX_RECORD_BYTES = 48  # clip position, world position + u, normal + v
 MAX_REGROW = 2  # re-renders one frame may take to grow the queue or the job list
 BUCKETS = 16384  # buckets of the triangle order (a multiple of SCAN_LANES: order_scan.comp.j2)
@@ -164,7 +164,6 @@ class ComputeRasterizer:
             "raster_small_area": self.small_area,
             "raster_small_fragments": float(self.small_fragments),
             "raster_medium_area": self.medium_area,
-            "raster_depth_unit": DEPTH_UNIT,
             "raster_buckets": BUCKETS,
             "raster_order_tile_bits": ORDER_TILE_BITS,
             "raster_scan_lanes": SCAN_LANES,
@@ -301,9 +300,10 @@ class ComputeRasterizer:
         ctx, (clear, count, scatter, scan) = self.ctx, order_kernels
         triangles = draw.mesh.triangle_count
         self._fit_order(triangles)
-        self._buckets.bind_to_storage_buffer(14)
-        self._order.bind_to_storage_buffer(15)
-        self._keys.bind_to_storage_buffer(9)  # the mesh's vertices there served the vertex stage only
+        self._buckets.bind_to_storage_buffer(Buffer.RASTER_BUCKETS)
+        self._order.bind_to_storage_buffer(Buffer.RASTER_ORDER)
+        # the keys share the mesh vertices' number: those served the vertex stage only
+        self._keys.bind_to_storage_buffer(Buffer.RASTER_ORDER_KEYS)
         for kernel in (count, scatter):
             set_uniform(kernel, "gua_tri_count", triangles)
         set_uniform(count, "gua_depth_range", depth_range)
@@ -330,7 +330,7 @@ class ComputeRasterizer:
             self._fresh, self._frame = False, frame
         ctx, device = self.ctx, self.device
         gbuffer = frame.resources["gbuffer"]
-        gbuffer.depth.use(location=DEPTH_UNIT)
+        gbuffer.depth.use(location=Texture.RASTER_DEPTH)
         samples = sample_uniforms(device.antialiasing.positions)
         # the queue bookkeeping after the setup (1) and bin (2) stages; the order stage's bucket clear
         # (0), count (1) and scatter (3), then its prefix sum
@@ -361,27 +361,27 @@ class ComputeRasterizer:
         else:
             draws = sorted(draws, key=lambda d: -ranges[d.index][1])
         # the buffers every draw of the call shares (the order stage rebinds 9, the mesh's, per draw)
-        self._verts.bind_to_storage_buffer(8)
-        self._state.bind(11)
-        self._large.bind_to_storage_buffer(12)
-        self._jobs.bind_to_storage_buffer(13)
+        self._verts.bind_to_storage_buffer(Buffer.RASTER_VERTICES)
+        self._state.bind(Buffer.RASTER_STATE)
+        self._large.bind_to_storage_buffer(Buffer.RASTER_LARGE)
+        self._jobs.bind_to_storage_buffer(Buffer.RASTER_JOBS)
         for d in draws:
             if len(d.mesh.positions) > self.vertex_capacity:  # a later call of the pass with a larger mesh
                 self._require_vertices(len(d.mesh.positions))
                 self._release(self._verts)
                 self.vertex_capacity = len(d.mesh.positions)
                 self._verts = ctx.buffer(reserve=self.vertex_capacity * VERTEX_RECORD_BYTES)
-                self._verts.bind_to_storage_buffer(8)
+                self._verts.bind_to_storage_buffer(Buffer.RASTER_VERTICES)
             kernels = programs.get(id(d.material))
             if kernels is None:  # per material, for this call (the method's state is fixed)
                 kernels = programs[id(d.material)] = self._programs(frame.method, d)
             vert, setup, binner, fine = kernels
             vbo, ibo = device.meshes.buffers(d.mesh)
-            vbo.bind_to_storage_buffer(9)
-            ibo.bind_to_storage_buffer(10)
+            vbo.bind_to_storage_buffer(Buffer.RASTER_MESH_VERTICES)
+            ibo.bind_to_storage_buffer(Buffer.RASTER_INDICES)
             if device.antialiasing.merge:  # each triangle's edge neighbours (raster/adjacency.py), built once per mesh
                 adjacency = device.meshes.adjacency(d.mesh, device.caps.limits)
-                adjacency.bind_to_storage_buffer(7)
+                adjacency.bind_to_storage_buffer(Buffer.RASTER_ADJACENCY)
                 self._adjacency_bytes[adjacency.glo] = adjacency.size
             for prog in kernels:
                 if prog.glo in ready:

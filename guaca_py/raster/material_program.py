@@ -11,8 +11,7 @@ from collections.abc import Iterable, Mapping
 import numpy as np
 
 from ..shaders import ShaderLibrary, SourceMap, mat_bytes, set_uniforms
-
-TEXTURE_UNIT_BASE = 8  # material textures take units from here up (units below are the passes' inputs)
+from ..shaders.slots import Texture
 
 
 def material_vars(material, smap: SourceMap, stage: str | None, sources: Mapping[str, str] | None = None) -> dict:
@@ -57,7 +56,7 @@ def apply_material(textures, draw, programs: Iterable) -> None:
     for every program of the material (the compute rasterizer sets them on four kernels); the
     values are converted once for all of them.
     """
-    unit = TEXTURE_UNIT_BASE
+    unit = Texture.MATERIALS
     values = []
     for name, spec in draw.material.uniforms.items():
         value = draw.values[name]

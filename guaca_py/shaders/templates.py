@@ -11,6 +11,7 @@ import numpy as np
 
 from ..errors import ShaderCompileError
 from ..resources import builtin_dir
+from . import slots
 
 _BEGIN, _END = "// @gua-source-begin ", "// @gua-source-end"
 # Mesa: "0:12(5): error: ..."   NVIDIA: "0(12) : error C1008: ..."
@@ -91,6 +92,7 @@ class ShaderLibrary:
             trim_blocks=True,
             lstrip_blocks=True,
         )
+        self.env.globals.update(slots.template_globals())  # binding slots by name: {{ Buffer.LIGHTS }}
         self._programs: dict = {}
 
     def render(self, template: str, **variables) -> str:

@@ -6,6 +6,7 @@ import moderngl
 import numpy as np
 
 from ..shaders import ShaderLibrary
+from ..shaders.slots import Texture
 
 LINE_HEIGHT = 14
 
@@ -58,8 +59,8 @@ class Hud:
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
         self.ctx.enable(moderngl.BLEND)
         self.ctx.blend_func = moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA
-        self.tex.use(location=0)
-        self.prog["gua_input"] = 0
+        self.tex.use(location=Texture.PRESENT_INPUT)
+        self.prog["gua_input"] = Texture.PRESENT_INPUT
         self.prog["gua_viewport"] = tuple(float(v) for v in rect)
         self.vao.render(moderngl.TRIANGLES, vertices=3)
         self.ctx.disable(moderngl.BLEND)
