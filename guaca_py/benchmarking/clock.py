@@ -43,7 +43,7 @@ def max_sm_clock() -> int | None:
 class ClockSampler:
     """Context manager: polls `nvidia-smi` for clocks.sm every `period_ms`; summary() afterwards."""
 
-    def __init__(self, period_ms: int = 100):
+    def __init__(self, period_ms: int = 100) -> None:
         self.period_ms = period_ms
         self.samples: list[int] = []
         self._proc = None
@@ -106,6 +106,7 @@ def at_full_clock(
     valid: Callable[[T], bool] = lambda _: True,
     warm_up: Callable[[], object] | None = None,
     share: float = 0.9,
+    period_ms: int = 100,
 ) -> tuple[T, ClockSampler, int]:
     """Run `measure` under a ClockSampler, again (up to RETRIES) while the clock was under `share` of its maximum.
 
@@ -115,7 +116,7 @@ def at_full_clock(
     number of retries; an invalid result (a failed run) is not retried.
     """
     for attempt in range(RETRIES + 1):  # noqa: B007 - returned after the loop
-        with ClockSampler() as clock:
+        with ClockSampler(period_ms) as clock:
             if warm_up is not None:
                 warm_up()
                 clock.restart()
@@ -123,3 +124,26 @@ def at_full_clock(
         if not valid(result) or not clock.throttled(share):
             break
     return result, clock, attempt
+
+
+def below_max_clock(clock: dict | None, top: float | None) -> bool:
+    """Whether a row is not known to have run at the maximum SM clock: its median was below `top`, or
+    nothing was sampled on a device that has a maximum. Without a maximum (no nvidia-smi) never."""
+    return top is not None and (clock is None or clock["sm_clock_mhz_median"] < top)
+
+
+def top_clock(record: dict) -> float | None:
+    """The maximum SM clock a record's rows are judged by: the one it stored ("max_sm_clock_mhz", None
+    without nvidia-smi), else, for records made before it was stored, the highest clock a row sampled."""
+    if "max_sm_clock_mhz" in record:
+        return record["max_sm_clock_mhz"]
+    seen = [r["clock"]["sm_clock_mhz_max"] for r in record["rows"] if r.get("clock")]
+    return max(seen) if seen else None
+
+
+def ratio_at_full_clock(base: dict, other: dict, top: float | None, key: str = "ms") -> float | None:
+    """other[key] / base[key] where both rows ran at the maximum SM clock (or none is known), else None:
+    times taken at different clocks are not compared."""
+    if below_max_clock(base.get("clock"), top) or below_max_clock(other.get("clock"), top):
+        return None
+    return other[key] / base[key]

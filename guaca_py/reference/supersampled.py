@@ -12,7 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scene.graph import Camera, Scene
+from ..pipeline.config import PipelineConfig, pipeline_from_text
+from ..renderer import Renderer
+from ..scene.graph import Camera, Scene
 
 
 @dataclass
@@ -87,39 +89,11 @@ def _block_mean_spread(image: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarra
     return acc / (k * k), (hi.astype(np.float64) - lo).max(axis=-1)
 
 
-def rmse_255(image: np.ndarray, reference: np.ndarray, mask: np.ndarray | None = None) -> float:
-    """RMSE in 1/255 of two linear images clipped to [0, 1], over `mask` (all pixels if None)."""
-    d = (np.clip(np.asarray(image, np.float64), 0, 1) - np.clip(reference, 0, 1)) * 255.0
-    if mask is not None:
-        if not mask.any():
-            return float("nan")
-        d = d[mask]
-    return float(np.sqrt(np.mean(d**2)))
-
-
-def srgb(linear: np.ndarray) -> np.ndarray:
-    """sRGB encoding of linear values clipped to [0, 1]."""
-    x = np.clip(linear, 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
-
-
-def flip(image: np.ndarray, reference: np.ndarray) -> float | None:
-    """Mean LDR-FLIP of two linear images (sRGB-encoded for FLIP), or None without `flip-evaluator`."""
-    try:
-        import flip_evaluator
-    except ImportError:
-        return None
-    ref = srgb(reference).astype(np.float32)
-    test = srgb(image).astype(np.float32)
-    _, mean, _ = flip_evaluator.evaluate(ref, test, "LDR", applyMagma=False)
-    return float(mean)
-
-
-def linear_pipeline(samples: int = 1, threshold: float = 0.999, light_culling: str = "auto", merge: str = "off"):
+def linear_pipeline(
+    samples: int = 1, threshold: float = 0.999, light_culling: str = "auto", merge: str = "off"
+) -> PipelineConfig:
     """The accuracy benchmarks' pipeline: pipelines/exact with culled lights, linear output, `samples` per pixel
     (`merge`: antialiasing.merge)."""
-    from .pipeline.config import pipeline_from_text
-
     return pipeline_from_text(
         f"name: linear_aa{samples}\n"
         f"transparency: {{method: presort_lf_et, threshold: {threshold}, budget_mb: auto}}\n"
@@ -127,6 +101,18 @@ def linear_pipeline(samples: int = 1, threshold: float = 0.999, light_culling: s
         f"passes: [geometry, {{light_culling: {{mode: {light_culling}}}}}, composite]\n",
         f"<linear pipeline, {samples} samples>",
     )
+
+
+def exact_reference(
+    ctx, scene: Scene, width: int, height: int, k: int, tile_px: int = 2048, method: str = "presort_lf"
+) -> Supersampled:
+    """The supersampled reference of `scene` on context `ctx`: `method` (exact; presort_lf has no early
+    termination) through the hardware rasterizer, as every sample count's coverage rules, k x the size."""
+    r = Renderer(linear_pipeline(1), ctx=ctx, method=method, method_overrides={"raster": "hardware"})
+    try:
+        return supersampled(r, scene, width, height, k, tile_px)
+    finally:
+        r.release()
 
 
 def edge_pixels(reference: Supersampled, tolerance: float = 0.05) -> np.ndarray:

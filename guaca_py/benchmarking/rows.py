@@ -5,17 +5,17 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Iterable
 
-from guaca_py import GuacaError, Renderer
+from ..errors import GuacaError
 
 
 def config_rows(
-    configs: Iterable[tuple[dict, Callable[[], Renderer]]],
-    measure: Callable[[Renderer, dict], None],
+    configs: Iterable[tuple[dict, Callable[[], object]]],
+    measure: Callable[[object, dict], None],
     report: Callable[[dict], None],
     t0: float,
     budget_s: float | None,
 ) -> list[dict]:
-    """One row per (row, make_renderer): `measure(renderer, row)` fills it, `report(row)` prints it.
+    """One row per (row, make_renderer): `measure(renderer, row)` fills it, `report(row)` prints it (skipped or not).
 
     A row is skipped (its `skipped` says why) once `budget_s` seconds since `t0` are spent (the first
     configuration always runs, whatever the scene's reference took), or where the device refuses the
@@ -40,8 +40,5 @@ def config_rows(
                     r.release()
         row["seconds"] = time.perf_counter() - t1
         rows.append(row)
-        if "skipped" in row:
-            print(f"  {row['label']}: skipped ({row['skipped']})", flush=True)
-        else:
-            report(row)
+        report(row)
     return rows
