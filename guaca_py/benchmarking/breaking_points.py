@@ -12,6 +12,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import moderngl
+
 from ..errors import GuacaError
 from ..reference import compare, layered_quads_scene, reference_of
 from ..renderer import Renderer
@@ -34,7 +36,7 @@ CONFIGS = [
 ]
 
 
-def run(ctx, size: int, layer_counts: list[int], progress: Callable[[str], None] = print) -> dict:
+def run(ctx: moderngl.Context, size: int, layer_counts: list[int], progress: Callable[[str], None] = print) -> dict:
     """Render every configuration at every depth complexity on context `ctx`; rows of errors and counters."""
     rows = []
     renderers = {}

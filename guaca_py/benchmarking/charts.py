@@ -2,8 +2,14 @@
 
 from __future__ import annotations
 
+from types import ModuleType
+from typing import TYPE_CHECKING
 
-def pyplot():
+if TYPE_CHECKING:  # matplotlib is optional
+    from matplotlib.axis import Axis
+
+
+def pyplot() -> ModuleType | None:
     """matplotlib.pyplot on the file-only Agg backend, or None where matplotlib is not installed."""
     try:
         import matplotlib
@@ -15,7 +21,7 @@ def pyplot():
     return plt
 
 
-def plain_log_axis(axis) -> None:
+def plain_log_axis(axis: Axis) -> None:
     """Label a log-scale matplotlib axis with plain numbers at 1, 2 and 5 per decade.
 
     Matplotlib's default labels powers of ten only across a wide range and every minor tick across a

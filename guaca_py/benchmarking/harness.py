@@ -19,7 +19,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..context import create_context
+import moderngl
+
+from ..context import Capabilities, create_context
 from .charts import pyplot
 
 KNOWN_DEVICES = (("H100", "h100"), ("llvmpipe", "llvmpipe"))  # (in the GL renderer string, folder name)
@@ -38,8 +40,8 @@ def device_slug(renderer: str) -> str:
 class Device:
     """A headless GL context for a benchmark's renderers, and what names its results."""
 
-    ctx: object
-    caps: object
+    ctx: moderngl.Context
+    caps: Capabilities
 
     @property
     def name(self) -> str:

@@ -12,7 +12,8 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from .. import FrameResult
+from .. import FrameResult, Renderer
+from ..scene.graph import Scene
 from .clock import at_full_clock
 
 
@@ -27,13 +28,15 @@ class Measurement:
     last: FrameResult
 
 
-def measure(renderer, scene, width: int, height: int, warmup: int = 3, frames: int = 10) -> Measurement:
+def measure(
+    renderer: Renderer, scene: Scene, width: int, height: int, warmup: int = 3, frames: int = 10
+) -> Measurement:
     """Render `warmup` frames untimed, then `frames` timed ones; per-pass medians in ms."""
     return measure_interleaved({"": renderer}, scene, width, height, warmup, frames)[""]
 
 
 def measure_interleaved(
-    renderers: dict, scene, width: int, height: int, warmup: int = 5, frames: int = 10
+    renderers: dict[str, Renderer], scene: Scene, width: int, height: int, warmup: int = 5, frames: int = 10
 ) -> dict[str, Measurement]:
     """Like measure() for several renderers at once, one frame of each per round (clock drift hits all alike)."""
     for _ in range(warmup):
@@ -60,7 +63,7 @@ def measure_interleaved(
     }
 
 
-def warm_up(renderer, scene, width: int, height: int, frames: int = 2, seconds: float = 0.0) -> int:
+def warm_up(renderer: Renderer, scene: Scene, width: int, height: int, frames: int = 2, seconds: float = 0.0) -> int:
     """Untimed frames without read-back, at least `frames` and for `seconds` (a GPU's clock ramps up only
     under load); the number rendered."""
     t_end = time.perf_counter() + seconds
@@ -101,8 +104,8 @@ class Point:
 
 
 def measure_point(
-    renderer,
-    scene,
+    renderer: Renderer,
+    scene: Scene,
     width: int,
     height: int | None = None,
     *,

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from concurrent.futures import Executor
+
 import numpy as np
 
 
@@ -39,7 +41,7 @@ def rmse_max_255(image: np.ndarray, reference: np.ndarray) -> tuple[float, float
     return float(np.sqrt(np.mean(d**2))), float(np.abs(d).max())
 
 
-def frame_errors(image: np.ndarray, reference: np.ndarray, edges: np.ndarray, pool=None) -> dict:
+def frame_errors(image: np.ndarray, reference: np.ndarray, edges: np.ndarray, pool: Executor | None = None) -> dict:
     """RMSE, edge RMSE (1/255) and FLIP of a linear frame against a linear reference; FLIP as a future
     where `pool` (a concurrent.futures executor) computes it while the caller renders on."""
     return {

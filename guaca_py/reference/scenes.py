@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import colorsys
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -28,7 +29,7 @@ def quad_mesh(half_w: float, half_h: float, name: str = "quad") -> MeshData:
     )
 
 
-def triangle_mesh(p0, p1, p2, name: str = "triangle") -> MeshData:
+def triangle_mesh(p0: Sequence[float], p1: Sequence[float], p2: Sequence[float], name: str = "triangle") -> MeshData:
     """A single triangle with its face normal on all three vertices."""
     pos = np.array([p0, p1, p2], dtype=np.float64)
     n = np.cross(pos[1] - pos[0], pos[2] - pos[0])

@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+import moderngl
 import numpy as np
 
 from ..pipeline.config import PipelineConfig, pipeline_from_text
@@ -45,7 +46,9 @@ class Supersampled:
     overflow: int = 0  # fragments the A-buffer dropped in any tile (pool at the device's limit): not exact there
 
 
-def supersampled(renderer, scene: Scene, width: int, height: int, k: int, tile_px: int = 2048) -> Supersampled:
+def supersampled(
+    renderer: Renderer, scene: Scene, width: int, height: int, k: int, tile_px: int = 2048
+) -> Supersampled:
     """`renderer` (an exact method with linear output) at k x (width, height), box filtered to (width, height)."""
     big_w, big_h = width * k, height * k
     nx, ny = -(-big_w // tile_px), -(-big_h // tile_px)
@@ -104,7 +107,13 @@ def linear_pipeline(
 
 
 def exact_reference(
-    ctx, scene: Scene, width: int, height: int, k: int, tile_px: int = 2048, method: str = "presort_lf"
+    ctx: moderngl.Context,
+    scene: Scene,
+    width: int,
+    height: int,
+    k: int,
+    tile_px: int = 2048,
+    method: str = "presort_lf",
 ) -> Supersampled:
     """The supersampled reference of `scene` on context `ctx`: `method` (exact; presort_lf has no early
     termination) through the hardware rasterizer, as every sample count's coverage rules, k x the size."""
