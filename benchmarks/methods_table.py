@@ -1,52 +1,49 @@
-"""Every transparency method the device runs, side by side: GPU time per stage, passes, memory, error.
+"""Every transparency method the device runs, side by side: time per stage, passes, memory, error.
 
-Usage: python benchmarks/methods_table.py OUTDIR [--replot] [--size 1024] [--frames 10] [--warmup 5]
-                                          [--methods ID ...] [--ref-size 192]
-Timing: the demo scene through pipelines/default.yaml (median of --frames after --warmup),
-all methods interleaved frame by frame so clock drift cannot favour any of them.
-Error: (a) the demo scene, lit, linear output of pipelines/exact.yaml, against presort_lf
-(exact, itself verified against the CPU reference) on the same device; (b) an unlit layered
-scene (16 layers, shuffled submission) against the float64 CPU reference (tests/reference.py),
-non-edge pixels. Errors are in 1/255 units. Writes OUTDIR/methods.json, methods.md, methods.png.
+Usage: python benchmarks/methods_table.py [--out DIR] [--size 1024] [--frames 10] [--warmup 5]
+                                          [--timing isolated|interleaved] [--methods ID ...] [--ref-size 192] [--replot]
+Timing: the demo scene through pipelines/default.yaml (median of --frames after --warmup), each method
+in its own `guaca render` process as a user runs it (isolated, the SM clock sampled and a throttled
+method measured again), or all in this process interleaved frame by frame (interleaved).
+Error: (a) the demo scene, lit, linear output of pipelines/exact.yaml, against presort_lf (exact,
+itself verified against the CPU reference) on the same device; (b) an unlit layered scene (16
+layers, shuffled submission) against the float64 CPU reference (guaca_py.reference), non-edge
+pixels. Errors are in 1/255. Writes benchmarks/results/<device>/methods_table/methods_table.{json,md,png}.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
-import numpy as np
+from guaca_py import GuacaError, Renderer, UnsupportedMethodError
+from guaca_py.benchmarking import (
+    ClockSampler,
+    Progress,
+    Results,
+    at_full_clock,
+    bench_args,
+    clock_summary,
+    measure_interleaved,
+    open_device,
+    time_label,
+    timer_sentence,
+)
+from guaca_py.methods import method_class, method_ids
+from guaca_py.reference import compare, layered_quads_scene, reference_of, rmse_max_255
+from guaca_py.scene.loader import demo_scene
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "tests"), str(ROOT / "benchmarks")]
-
-from gpu_clock import ClockSampler, at_full_clock, clock_summary  # noqa: E402
-from reference import compare, layered_quads_scene, reference_of  # noqa: E402
-
-from guaca_py import GuacaError, Renderer  # noqa: E402
-from guaca_py.benchmarking import measure_interleaved  # noqa: E402
-from guaca_py.context import create_context  # noqa: E402
-from guaca_py.methods import method_class, method_ids  # noqa: E402
-from guaca_py.scene.loader import demo_scene  # noqa: E402
 
 
-def linear_error(img: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
-    """RMSE and max abs error in 1/255 of two linear images clipped to [0, 1]."""
-    d = (np.clip(img, 0, 1) - np.clip(ref, 0, 1)) * 255.0
-    return float(np.sqrt(np.mean(d**2))), float(np.abs(d).max())
-
-
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("out", type=Path)
-    ap.add_argument("--size", type=int, default=1024)
-    ap.add_argument("--frames", type=int, default=10)
-    ap.add_argument("--warmup", type=int, default=5)
-    ap.add_argument("--ref-size", type=int, default=192)
+def main(argv: list[str] | None = None) -> int:
+    """Time and check every method (or rebuild the table and chart with --replot)."""
+    ap = bench_args(__file__, __doc__, size=1024, frames=10)
+    ap.set_defaults(warmup=5)
+    ap.add_argument("--ref-size", type=int, default=192, help="size of the layered scene against the CPU reference")
     ap.add_argument(
         "--timing",
         choices=("isolated", "interleaved"),
@@ -55,13 +52,26 @@ def main(argv=None) -> int:
         "interleaved: one process, one frame of each method per round",
     )
     ap.add_argument("--methods", nargs="*")
-    ap.add_argument("--replot", action="store_true", help="only rebuild the table and chart from OUT/methods.json")
     args = ap.parse_args(argv)
     if args.replot:
-        replot(args.out / "methods.json")
-        return 0
-    args.out.mkdir(parents=True, exist_ok=True)
-    ctx, caps = create_context()
+        res = Results.existing(args, argv)
+        data = res.read_json()
+    else:
+        device = open_device()
+        res = Results(args, device.name, argv)
+        data = run(device, args, res.command)
+        res.write_json(data)
+        data["command"] = res.command
+    md = table(data["rows"], data["meta"], data.get("command"))
+    res.write_markdown(md)
+    res.write_chart(chart(data["rows"], data["meta"]))
+    print(md)
+    return 0
+
+
+def run(device, args, command: str) -> dict:
+    """Timing first (before the CPU-heavy error phase), then the errors; the record."""
+    ctx = device.ctx
     demo = demo_scene()
     layered = layered_quads_scene(n_layers=16, order="shuffled", seed=11)
     rs = args.ref_size
@@ -71,18 +81,18 @@ def main(argv=None) -> int:
     exact_r.release()
     rows, runnable = [], []
     for mid in args.methods or method_ids():
-        cls = method_class(mid)
-        row = {"method": mid, "exact": cls.exact, "declared_geometry_passes": cls.geometry_passes}
+        row = {"method": mid, "exact": method_class(mid).exact}
         rows.append(row)
-        reason = cls.unsupported_reason(caps)
-        if reason:
-            row["skipped"] = reason
-            print(f"{mid:<26} skipped: {reason}", flush=True)
+        try:
+            Renderer("exact", ctx=ctx, method=mid).release()
+        except UnsupportedMethodError as exc:
+            row["skipped"] = str(exc)
+            print(f"{mid:<26} skipped: {exc}", flush=True)
         else:
             runnable.append(mid)
-    # Timing first, before the CPU-heavy error phase.
+    progress = Progress(2 * len(runnable))
     timing = time_isolated if args.timing == "isolated" else time_interleaved
-    results, clock_samples = timing(runnable, ctx, demo, args)
+    results, clock_samples = timing(runnable, ctx, demo, args, progress)
     for row in rows:
         row.update(results.get(row["method"], {}))
     for row in rows:
@@ -91,7 +101,7 @@ def main(argv=None) -> int:
             continue
         try:
             r = Renderer("exact", ctx=ctx, method=mid)
-            row["demo_rmse_255"], row["demo_max_255"] = linear_error(
+            row["demo_rmse_255"], row["demo_max_255"] = rmse_max_255(
                 r.render(demo, args.size, args.size).linear, exact_demo
             )
             e = compare(r.render(layered, rs, rs).image, ref_img, ref_mask)
@@ -100,7 +110,7 @@ def main(argv=None) -> int:
         except GuacaError as exc:
             row["failed"] = str(exc)
             del row["pass_ms"]
-        print(
+        progress.step(
             f"{mid:<26} "
             + (
                 f"failed: {row['failed']}"
@@ -108,29 +118,24 @@ def main(argv=None) -> int:
                 else f"{row['total_ms']:8.3f} ms  passes {row['geometry_passes']}  "
                 f"err(demo) {row['demo_rmse_255']:.3f}/{row['demo_max_255']:.1f}  "
                 f"err(ref) {row['ref_rmse_255']:.3f}/{row['ref_max_255']:.1f}"
-            ),
-            flush=True,
+            )
         )
     post = [sum(v for k, v in r["pass_ms"].items() if k in ("tone_mapping", "fxaa")) for r in rows if "pass_ms" in r]
     meta = {
-        "device": caps.gl_renderer,
+        "device": device.name,
         "size": args.size,
         "frames": args.frames,
         "warmup": args.warmup,
         "ref_size": rs,
-        "insertion_path": caps.insertion_path,
+        "insertion_path": device.caps.insertion_path,
         "timing": args.timing,
+        "timer": next((r["timer"] for r in rows if "timer" in r), None),
         # identical post passes in every row: their spread shows how steady the clock was
         "post_ms_min": min(post, default=0.0),
         "post_ms_max": max(post, default=0.0),
         **(clock_summary(clock_samples) or {}),
     }
-    (args.out / "methods.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=2))
-    md = table(rows, meta)
-    (args.out / "methods.md").write_text(md)
-    print(md)
-    chart(rows, meta, args.out / "methods.png")
-    return 0
+    return {"meta": meta, "rows": rows}
 
 
 def _row_from_stats(s: dict, pass_ms: dict, total_ms: float) -> dict:
@@ -146,7 +151,7 @@ def _row_from_stats(s: dict, pass_ms: dict, total_ms: float) -> dict:
     )
 
 
-def time_interleaved(mids: list[str], ctx, scene, args) -> tuple[dict[str, dict], list[int]]:
+def time_interleaved(mids: list[str], ctx, scene, args, progress: Progress) -> tuple[dict[str, dict], list[int]]:
     """All methods in this process, one frame of each per round: clock changes hit all alike."""
     out, timed = {}, {}
     for mid in mids:
@@ -162,10 +167,11 @@ def time_interleaved(mids: list[str], ctx, scene, args) -> tuple[dict[str, dict]
     for mid, m in ms.items():
         out[mid] = _row_from_stats(m.last.stats, m.pass_ms, m.total_ms)
         timed[mid].release()
+        progress.step(f"{mid:<26} timed: {out[mid]['total_ms']:.3f} ms")
     return out, clock.samples
 
 
-def time_isolated(mids: list[str], ctx, scene, args) -> tuple[dict[str, dict], list[int]]:
+def time_isolated(mids: list[str], ctx, scene, args, progress: Progress) -> tuple[dict[str, dict], list[int]]:
     """Each method in a fresh `guaca render --warmup W --frames F` process (the demo scene), with its SM clock."""
     out, samples = {}, []
     with tempfile.TemporaryDirectory() as tmp:
@@ -197,6 +203,7 @@ def time_isolated(mids: list[str], ctx, scene, args) -> tuple[dict[str, dict], l
             )
             if proc.returncode != 0:
                 out[mid] = {"failed": " ".join((proc.stderr or proc.stdout).strip().splitlines()[-1:])}
+                progress.step(f"{mid:<26} failed: {out[mid]['failed']}")
                 continue
             s = json.loads(stats_path.read_text())
             pass_ms = {k: v["ms"] for k, v in s["passes"].items()}
@@ -205,7 +212,7 @@ def time_isolated(mids: list[str], ctx, scene, args) -> tuple[dict[str, dict], l
             if clock.summary():
                 out[mid]["sm_clock_mhz_median"] = clock.summary()["sm_clock_mhz_median"]
                 out[mid]["clock_retries"] = retries
-            print(f"{mid:<26} timed: {out[mid]['total_ms']:.3f} ms", flush=True)
+            progress.step(f"{mid:<26} timed: {out[mid]['total_ms']:.3f} ms")
     return out, samples
 
 
@@ -220,7 +227,7 @@ def _mem_alloc_used(mem: dict) -> tuple[int, int]:
     return alloc, used
 
 
-def table(rows, meta) -> str:
+def table(rows: list[dict], meta: dict, command: str | None) -> str:
     """Markdown table of the measured rows."""
     how = {
         "isolated": "each method in its own `guaca render` process",
@@ -238,6 +245,10 @@ def table(rows, meta) -> str:
             else ""
         )
         + " · errors in 1/255 (RMSE / max)",
+        "",
+        timer_sentence(meta.get("timer", "gpu")),
+        "",
+        f"Command: `{command}`",
         "",
         "Geometry ms is the G-buffer pass plus any pass that stores fragments; peeling and blending methods "
         "draw their transparent geometry inside the composite pass, so compare totals.",
@@ -268,13 +279,14 @@ def table(rows, meta) -> str:
     return "\n".join(out) + "\n"
 
 
-def chart(rows, meta, path: Path) -> None:
-    """Two panels: GPU time per stage for each method, and frame time against error."""
-    import matplotlib
+def chart(rows: list[dict], meta: dict):
+    """A drawing function: time per stage for each method, and frame time against error."""
+    return lambda plt: _draw(plt, rows, meta)
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
+def _draw(plt, rows: list[dict], meta: dict):
+    """The two panels of chart()."""
+    timer = meta.get("timer", "gpu")
     done = sorted((r for r in rows if "pass_ms" in r), key=lambda r: r["total_ms"])
     fig, (bars, scat) = plt.subplots(1, 2, figsize=(14, 6.5), gridspec_kw={"width_ratios": [1, 1.15]})
     stages = [
@@ -298,7 +310,7 @@ def chart(rows, meta, path: Path) -> None:
         list(y), [f"{r['method']} ({r['geometry_passes']})" + ("" if r["exact"] else " ≈") for r in done], fontsize=8
     )
     bars.invert_yaxis()
-    bars.set_xlabel("GPU ms per frame (median); label: method (geometry passes), ≈ approximate")
+    bars.set_xlabel(time_label(timer, "ms per frame (median)") + "; label: method (geometry passes), ≈ approximate")
     bars.legend(fontsize=8, loc="upper right")
     bars.set_title("Time per stage (peeling and blending draw inside composite)", fontsize=10)
     # y: lit demo error against the exact A-buffer; exact methods sit at the float floor
@@ -335,20 +347,13 @@ def chart(rows, meta, path: Path) -> None:
     scat.set_xscale("log")
     scat.set_yscale("log")
     scat.set_ylim(floor / 3, 100)
-    scat.set_xlabel("GPU ms per frame (median, log)")
+    scat.set_xlabel(time_label(timer, "ms per frame (median, log)"))
     scat.set_ylabel(f"RMSE vs exact, 1/255 (lit demo, linear; floor {floor})")
     scat.set_title("Speed against accuracy (○ exact, △ approximate)", fontsize=10)
     fig.suptitle(f"Transparency methods, demo scene {meta['size']}², {meta['device']}", fontsize=11)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-
-
-def replot(json_path: Path) -> None:
-    """Rebuild methods.md and methods.png beside a saved methods.json."""
-    data = json.loads(json_path.read_text())
-    (json_path.parent / "methods.md").write_text(table(data["rows"], data["meta"]))
-    chart(data["rows"], data["meta"], json_path.parent / "methods.png")
+    return fig
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    raise SystemExit(main())

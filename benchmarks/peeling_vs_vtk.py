@@ -1,7 +1,8 @@
 """Dual depth peeling against VTK's on the same scene (llvmpipe or any EGL device).
 
-Usage: python benchmarks/peeling_vs_vtk.py OUTDIR [--size 512] [--layers 48] [--frames 5]
-       [--warmup 1] [--rounds 3] [--methods dual_depth_peeling presort_lf_et] [--no-vtk]
+Usage: python benchmarks/peeling_vs_vtk.py [--out DIR] [--size 512] [--layers 48] [--frames 3]
+       [--warmup 1] [--rounds 3] [--methods dual_depth_peeling presort_lf_et] [--threshold T ...]
+       [--vtk-max-peels N ...] [--no-vtk] [--replot]
 
 Scene: LAYERS screen-covering quads (12 x 12 at z = 2 ... -3, distinct hues, alpha 0.5, unlit),
 submitted in a shuffled order (seed 7), camera at z = 5 looking at the origin (fov 50, near 0.1,
@@ -24,10 +25,11 @@ Renderer.render(scene, W, H, stats=False), which builds the draw list, runs ever
 the 8-bit image back to numpy (glReadPixels waits for the GPU); for VTK, RenderWindow.Render()
 followed by GetPixelData() of the whole window (glReadPixels, same wait). Configurations are
 interleaved round by round (rounds x frames timed frames each, after warm-up frames) and the
-median is reported. Error: against tests/reference.py's float64 CPU composite of the same
-triangles, on non-edge pixels, in 1/255 (RMSE and max).
+median is reported (wall time: on llvmpipe both renderers run on the CPU). Error: against
+guaca_py.reference's float64 CPU composite of the same triangles, on non-edge pixels, in 1/255
+(RMSE and max).
 
-Writes OUTDIR/peeling_vs_vtk.json and OUTDIR/peeling_vs_vtk.md.
+Writes benchmarks/results/<device>/peeling_vs_vtk/peeling_vs_vtk.{json,md}.
 """
 
 from __future__ import annotations
@@ -41,18 +43,13 @@ import resource
 import statistics
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
-
-from reference import compare, quad_mesh, reference_of, scene_triangles  # noqa: E402
-
-from guaca_py import Renderer  # noqa: E402
-from guaca_py.context import create_context  # noqa: E402
-from guaca_py.scene.graph import Camera, MaterialInstance, Node, Scene, Transform  # noqa: E402
+from guaca_py import Renderer
+from guaca_py.benchmarking import Progress, Results, bench_args, open_device
+from guaca_py.reference import compare, quad_mesh, reference_of, scene_triangles
+from guaca_py.scene.graph import Camera, MaterialInstance, Node, Scene, Transform
 
 
 def planes_scene(n: int, alpha: float = 0.5, seed: int = 7) -> Scene:
@@ -78,6 +75,7 @@ def planes_scene(n: int, alpha: float = 0.5, seed: int = 7) -> Scene:
 
 
 def cpu_seconds() -> float:
+    """User and system CPU time of this process, all threads."""
     r = resource.getrusage(resource.RUSAGE_SELF)
     return r.ru_utime + r.ru_stime
 
@@ -185,7 +183,7 @@ class VtkProxy:
     def __init__(self, args, explicit: bool, max_peels: int = 0):
         import subprocess
 
-        cmd = [sys.executable, __file__, "-", "--vtk-worker", "--size", str(args.size), "--layers", str(args.layers)]
+        cmd = [sys.executable, __file__, "--vtk-worker", "--size", str(args.size), "--layers", str(args.layers)]
         cmd += ["--max-peels", str(max_peels)] + (["--explicit"] if explicit else [])
         self.proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         hello = json.loads(self.proc.stdout.readline())
@@ -235,14 +233,12 @@ def vtk_worker(args) -> None:
         print(json.dumps(out), flush=True)
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("out", type=Path)
-    ap.add_argument("--size", type=int, default=512)
+def main(argv: list[str] | None = None) -> int:
+    """Compare (or rebuild the table with --replot)."""
+    ap = bench_args(__file__, __doc__, size=512, frames=3)
+    ap.set_defaults(warmup=1)
     ap.add_argument("--layers", type=int, default=48)
-    ap.add_argument("--frames", type=int, default=3, help="timed frames per configuration and round")
     ap.add_argument("--rounds", type=int, default=3, help="rounds; configurations are interleaved within each")
-    ap.add_argument("--warmup", type=int, default=1)
     ap.add_argument("--methods", nargs="+", default=["dual_depth_peeling", "presort_lf_et"])
     ap.add_argument("--threshold", type=float, nargs="*", default=[], help="extra dual_depth_peeling thresholds")
     ap.add_argument("--no-vtk", action="store_true")
@@ -252,14 +248,29 @@ def main() -> None:
     ap.add_argument(
         "--vtk-max-peels", type=int, nargs="*", default=[], help="extra VTK runs (default path) with these peel caps"
     )
-    a = ap.parse_args()
+    a = ap.parse_args(argv)
     if a.vtk_worker:
         vtk_worker(a)
-        return
+        return 0
+    if a.replot:
+        res = Results.existing(a, argv)
+        data = res.read_json()
+    else:
+        device = open_device()
+        res = Results(a, device.name, argv)
+        data = run(a, device, res.command)
+        res.write_json(data)
+    md = markdown(data)
+    res.write_markdown(md)
+    print(md)
+    return 0
 
+
+def run(a, device, command: str) -> dict:
+    """Error, then interleaved rounds of timed frames of every configuration; the record."""
     scene = planes_scene(a.layers)
     ref, mask, layers = reference_of(scene, a.size, a.size)
-    ctx, caps = create_context()
+    ctx = device.ctx
     configs: list = [Ours(ctx, m, None) for m in a.methods]
     configs += [Ours(ctx, "dual_depth_peeling", t) for t in a.threshold]
     vtk_note = None
@@ -291,6 +302,7 @@ def main() -> None:
             v.timed()
     for row in rows.values():
         row["wall_s"], row["cpu_s"] = [], []
+    progress = Progress(a.rounds)
     for r in range(a.rounds):
         for c in configs:
             for _ in range(a.frames):
@@ -303,14 +315,14 @@ def main() -> None:
                 w, cpu = v.timed()
                 rows[v.label]["wall_s"].append(w)
                 rows[v.label]["cpu_s"].append(cpu)
-        print(f"round {r + 1}/{a.rounds} done", flush=True)
+        progress.step(f"round {r + 1} done")
     for v in vtk_configs:
         v.close()
     for row in rows.values():
         row["median_wall_s"] = statistics.median(row["wall_s"])
         row["median_cpu_s"] = statistics.median(row["cpu_s"])
     meta = {
-        "device": caps.gl_renderer,
+        "device": device.name,
         "cpus": os.cpu_count(),
         "machine": platform.processor() or platform.machine(),
         "vtk": vtk_version,
@@ -322,14 +334,19 @@ def main() -> None:
         "rounds": a.rounds,
         "warmup": a.warmup,
         "load_average": os.getloadavg(),
-        "command": "python benchmarks/peeling_vs_vtk.py " + " ".join(sys.argv[1:]),
+        "command": command,
     }
-    a.out.mkdir(parents=True, exist_ok=True)
-    (a.out / "peeling_vs_vtk.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=1) + "\n")
+    return {"meta": meta, "rows": rows}
+
+
+def markdown(data: dict) -> str:
+    """The table: wall and CPU seconds per frame, geometry passes and error of each configuration."""
+    meta, rows = data["meta"], data["rows"]
     lines = [
-        f"{a.layers} shuffled screen-covering quads (alpha 0.5, unlit), {a.size}², {meta['device']}, "
+        f"{meta['layers']} shuffled screen-covering quads (alpha 0.5, unlit), {meta['size']}², {meta['device']}, "
         f"{meta['cpus']} CPUs, load average at the end {', '.join(f'{x:.2f}' for x in meta['load_average'])}. "
-        f"Median of {a.rounds} interleaved rounds x {a.frames} frames after {a.warmup} warm-up; a frame "
+        f"Median of {meta['rounds']} interleaved rounds x {meta['frames_per_round']} frames after "
+        f"{meta['warmup']} warm-up; a frame "
         "includes the read-back of the 8-bit image. CPU = process CPU time of all threads per frame. "
         "Error against the float64 CPU composite, non-edge pixels, 1/255.",
         "",
@@ -342,12 +359,11 @@ def main() -> None:
             f"| {label} | {row['median_wall_s']:.3f} | {row['median_cpu_s']:.3f} | {passes} | "
             f"{row['rmse_255']:.2f} / {row['max_255']:.1f} |"
         )
-    if vtk_note:
-        lines += ["", vtk_note]
+    if meta.get("vtk_note"):
+        lines += ["", meta["vtk_note"]]
     lines += ["", f"Command: `{meta['command']}`", ""]
-    (a.out / "peeling_vs_vtk.md").write_text("\n".join(lines))
-    print("\n".join(lines))
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -1,47 +1,47 @@
 """Temporal stability along a camera path: flicker on pixels that should not change, and bit identity.
 
-Usage: python benchmarks/temporal_stability.py OUTDIR --scene FILE [--scene FILE ...] [--size 1024]
-                                               [--frames 60] [--degrees 3] [--ref-k 2] [--tile 2048] [--tolerance 1]
-                                               [--repeat 4] [--methods ID ...] [--samples 4]
+Usage: python benchmarks/temporal_stability.py [--out DIR] [--scenes .scenes] [--scene-names NAME ...]
+                                               [--size 1024] [--frames 60] [--degrees 3] [--ref-k 2] [--tile 2048]
+                                               [--tolerance 1] [--repeat 4] [--methods ID ...] [--samples 4]
                                                [--scene-budget-s S] [--replot]
 Path: --frames poses orbiting the scene camera's target about its up axis by --degrees in all
 (small steps: edges crawl by a fraction of a pixel per frame). Pixels that should not change
 between frames t and t+1: those whose supersampled exact reference (presort_lf at --ref-k x, in
 tiles of at most --tile px, box filtered) changes by less than --tolerance/255 in every channel.
-Per configuration (every method the device runs at 1 sample, presort_lf_et at each --samples;
+Per configuration (every method at 1 sample, skipped where the device refuses it; presort_lf_et at each --samples;
 the first method runs first, then the sample counts, then the others): the mean over frame pairs
 of the mean |difference| (1/255, linear output clipped to [0, 1]) on those pixels, the share of
 them that moved by more than --tolerance/255 (flicker), and whether rendering --repeat poses of
 the path again gives bit-identical images (races in overflow, ties, stochastic seeds). Pipeline:
-guaca_py.accuracy.linear_pipeline (threshold 0.999, culled lights, linear output). Once a scene
+guaca_py.reference.linear_pipeline (threshold 0.999, culled lights, linear output). Once a scene
 has run for --scene-budget-s (reference included), its remaining configurations are skipped
-(the first always runs).
-Writes OUTDIR/<scene>/stability.{json,md} and OUTDIR/README.md.
+(the first always runs). No times: accuracy does not depend on the timer.
+Writes benchmarks/results/<device>/temporal_stability/<scene>/stability.{json,md} and its README.md.
 """
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import math
-import shlex
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
-
-from config_rows import config_rows  # noqa: E402
-
-from guaca_py import Renderer  # noqa: E402
-from guaca_py.accuracy import linear_pipeline, supersampled  # noqa: E402
-from guaca_py.context import create_context  # noqa: E402
-from guaca_py.methods import method_class, method_ids  # noqa: E402
-from guaca_py.scene.loader import load_scene  # noqa: E402
+from guaca_py import Renderer
+from guaca_py.benchmarking import (
+    Progress,
+    Results,
+    add_reference_args,
+    bench_args,
+    config_rows,
+    open_device,
+    scene_paths,
+)
+from guaca_py.methods import method_class, method_ids
+from guaca_py.reference import linear_pipeline, supersampled
+from guaca_py.scene.loader import load_scene
 
 AA_METHOD = "presort_lf_et"
 REFERENCE_METHOD = "presort_lf"
@@ -84,12 +84,21 @@ def stable_masks(ctx, poses: list, size: int, k: int, tolerance: float, tile: in
     return masks, overflow
 
 
+def configs(args) -> list[tuple[str, str, int]]:
+    """(label, method, samples): every method at 1 sample, presort_lf_et's extra sample counts right after the
+    first method (a scene's time budget then cuts the method list, not the sample counts)."""
+    confs = [(m, m, 1) for m in (args.methods or method_ids())]
+    confs[1:1] = [(f"{AA_METHOD} x{n}", AA_METHOD, n) for n in args.samples if n > 1]
+    return confs
+
+
 def run_config(r: Renderer, poses: list, size: int, masks: list, tolerance: float, repeat: int) -> dict:
     """Flicker along the path and bit identity of repeated poses for one renderer."""
     keep = set(np.linspace(0, len(poses) - 1, max(1, repeat)).round().astype(int).tolist())
-    kept, means, moved, prev = {}, [], [], None
+    kept, means, moved, prev, samples = {}, [], [], None, None
     for i, scene in enumerate(poses):
-        img = r.render(scene, size, size).linear
+        frame = r.render(scene, size, size)
+        img, samples = frame.linear, frame.stats.get("antialiasing", {}).get("samples")
         if i in keep:
             kept[i] = img.copy()
         if prev is not None:
@@ -111,35 +120,32 @@ def run_config(r: Renderer, poses: list, size: int, masks: list, tolerance: floa
         "bit_identical": identical,
         "repeat_max_diff_255": worst,
         "repeated_poses": sorted(kept),
+        **({"samples": samples} if samples else {}),  # as rendered (a device may round the count up)
     }
 
 
-def run_scene(ctx, caps, path: Path, args) -> dict:
+def run_scene(ctx, path: Path, args, progress: Progress) -> dict:
     """Reference masks, then every configuration (until --scene-budget-s), for one scene."""
     t0 = time.perf_counter()
     scene = load_scene(path)
     poses = camera_path(scene, args.frames, args.degrees)
     masks, overflow = stable_masks(ctx, poses, args.size, args.ref_k, args.tolerance, args.tile)
     share = float(np.mean([m.mean() for m in masks])) if masks else 0.0
-    print(
+    progress.note(
         f"{path.stem}: reference {time.perf_counter() - t0:.1f} s, stable pixels {share:.1%} per pair"
-        + (f", OVERFLOW: {overflow} fragments dropped (smaller --tile)" if overflow else ""),
-        flush=True,
+        + (f", OVERFLOW: {overflow} fragments dropped (smaller --tile)" if overflow else "")
     )
-    ids = args.methods or [m for m in method_ids() if method_class(m).unsupported_reason(caps) is None]
-    confs = [(m, m, 1) for m in ids]
-    # the sample counts right after the first method: a scene's time budget cuts the method list instead
-    confs[1:1] = [(f"{AA_METHOD} x{n}", AA_METHOD, n) for n in args.samples if n > 1]
 
     def measure_row(r: Renderer, row: dict) -> None:
-        row["samples"] = r.samples
         row.update(run_config(r, poses, args.size, masks, args.tolerance, args.repeat))
 
     def report(row: dict) -> None:
-        print(
-            f"  {row['label']:28s} mean diff {row['mean_diff_255']:7.3f}/255  flicker {row['flicker_share']:7.2%}  "
-            f"bit-identical {row['bit_identical']}  ({row['seconds']:.1f} s)",
-            flush=True,
+        if "skipped" in row:
+            progress.step(f"{path.stem} {row['label']}: skipped ({row['skipped']})")
+            return
+        progress.step(
+            f"{path.stem} {row['label']:28s} mean diff {row['mean_diff_255']:7.3f}/255  "
+            f"flicker {row['flicker_share']:7.2%}  bit-identical {row['bit_identical']}  ({row['seconds']:.1f} s)"
         )
 
     def renderer(n: int, mid: str):
@@ -148,7 +154,7 @@ def run_scene(ctx, caps, path: Path, args) -> dict:
     rows = config_rows(
         (
             ({"label": label, "method": mid, "samples": n, "exact": method_class(mid).exact}, renderer(n, mid))
-            for label, mid, n in confs
+            for label, mid, n in configs(args)
         ),
         measure_row,
         report,
@@ -204,15 +210,11 @@ def markdown(rec: dict) -> str:
     return "\n".join(out) + "\n"
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("out", type=Path)
-    ap.add_argument("--scene", type=Path, action="append", default=[], help="scene YAML (repeatable)")
-    ap.add_argument("--size", type=int, default=1024)
-    ap.add_argument("--frames", type=int, default=60)
+def main(argv: list[str] | None = None) -> int:
+    """Measure stability per scene (or rebuild the tables with --replot)."""
+    ap = bench_args(__file__, __doc__, size=1024, frames=60, scenes=True)
+    add_reference_args(ap, k=2)
     ap.add_argument("--degrees", type=float, default=3.0, help="orbit angle over the whole path")
-    ap.add_argument("--ref-k", type=int, default=2, help="supersampling of the reference that decides stable pixels")
-    ap.add_argument("--tile", type=int, default=2048, help="largest reference tile side in px")
     ap.add_argument("--tolerance", type=float, default=1.0, help="in 1/255: reference change below = should not change")
     ap.add_argument("--repeat", type=int, default=4, help="poses rendered again for the bit-identity check")
     ap.add_argument("--methods", nargs="*", help="methods at 1 sample (default: every method the device runs)")
@@ -220,29 +222,32 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--scene-budget-s", type=float, default=0.0, help="per scene (reference included): later configurations skipped"
     )
-    ap.add_argument("--replot", action="store_true", help="rebuild the tables from OUTDIR/*/stability.json")
     args = ap.parse_args(argv)
-    if not args.scene and not args.replot:
-        ap.error("--scene is required unless --replot")
-    command = "python benchmarks/temporal_stability.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
-    args.out.mkdir(parents=True, exist_ok=True)
-    if not args.replot:
-        ctx, caps = create_context()
-        for path in args.scene:
-            rec = run_scene(ctx, caps, path, args)
-            rec.update(device=caps.gl_renderer, command=command)
-            d = args.out / rec["scene"]
-            d.mkdir(exist_ok=True)
-            (d / "stability.json").write_text(json.dumps(rec, indent=1))
-    # the index lists every scene in OUTDIR, also those of earlier runs
-    recs = [json.loads(p.read_text()) for p in sorted(args.out.glob("*/stability.json"))]
+    if args.replot:
+        res = Results.existing(args, argv)
+    else:
+        device = open_device()
+        res = Results(args, device.name, argv)
+        paths = scene_paths(args)
+        progress = Progress(len(paths) * len(configs(args)))
+        for path in paths:
+            rec = run_scene(device.ctx, path, args, progress)
+            rec.update(device=device.name, command=res.command)
+            (res.dir / rec["scene"]).mkdir(parents=True, exist_ok=True)
+            (res.dir / rec["scene"] / "stability.json").write_text(json.dumps(rec, indent=1))
+    # the index lists every scene in the folder, also those of earlier runs
+    recs = [json.loads(p.read_text()) for p in sorted(res.dir.glob("*/stability.json"))]
     index = ["# Temporal stability", ""]
     for rec in recs:
-        (args.out / rec["scene"] / "stability.md").write_text(markdown(rec))
-        index.append(f"- [{rec['scene']}]({rec['scene']}/stability.md) ({rec['frames']} frames at {rec['size']}²)")
-    (args.out / "README.md").write_text("\n".join(index) + "\n")
+        (res.dir / rec["scene"] / "stability.md").write_text(markdown(rec))
+        index.append(
+            f"- [{rec['scene']}]({rec['scene']}/stability.md) ({rec['frames']} frames at {rec['size']}², "
+            f"{rec['device']}): `{rec['command']}`"
+        )
+    (res.dir / "README.md").write_text("\n".join(index) + "\n")
+    print(f"wrote {res.dir}/README.md and {len(recs)} scene folders", flush=True)
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    raise SystemExit(main())

@@ -10,13 +10,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
-from reference import _test_camera, quad_mesh, unlit
 
-from guaca_py.accuracy import rmse_255, supersampled
 from guaca_py.antialiasing import with_settings
 from guaca_py.errors import ConfigError
 from guaca_py.pipeline.config import load_pipeline, pipeline_from_text
 from guaca_py.raster.adjacency import NO_NEIGHBOUR, edge_apexes
+from guaca_py.reference import origin_camera, quad_mesh, rmse_255, supersampled, unlit
 from guaca_py.scene.graph import Light, MaterialInstance, MeshData, Node, Scene, Transform
 
 EXACT = load_pipeline("exact")
@@ -71,7 +70,7 @@ def spheres(material, opaque: bool = False) -> Scene:
     if opaque:
         nodes.append(Node("wall", Transform((0.5, -0.6, -2.5)), quad_mesh(1.2, 0.8), unlit((0.9, 0.9, 0.8))))
     light = Light("directional", direction=(-0.4, -0.6, -1.0), intensity=3.0)
-    return Scene(camera=_test_camera(), background=(0.05, 0.08, 0.12), lights=[light], nodes=nodes)
+    return Scene(camera=origin_camera(), background=(0.05, 0.08, 0.12), lights=[light], nodes=nodes)
 
 
 def flat(color) -> MaterialInstance:
@@ -175,7 +174,7 @@ def test_a_sharper_crease_limit_merges_less(render):
         name="zigzag",
     )
     scene = Scene(
-        camera=_test_camera(),
+        camera=origin_camera(),
         background=(0.05, 0.08, 0.12),
         nodes=[
             Node("zigzag", Transform((0.0, 0.0, 1.0), (0.0, 0.0, 0.0), (1.0, 1.0, 1.0)), mesh, flat((0.8, 0.3, 0.3)))
@@ -206,7 +205,7 @@ def test_neighbour_buffers_reported_and_held_to_the_storage_rule(render, rendere
     monkeypatch.setenv("GUACA_MAX_BUFFER_MB", "0.1")
     r = renderer_factory(with_settings(EXACT, {"samples": 4, "merge": "adjacent"}, "test"), method_overrides=COMPUTE)
     with pytest.raises(LimitError, match="antialiasing.merge") as err:
-        r.render(Scene(camera=_test_camera(), nodes=[Node("many", Transform(), many, flat((1.0, 0.0, 0.0)))]), 16, 16)
+        r.render(Scene(camera=origin_camera(), nodes=[Node("many", Transform(), many, flat((1.0, 0.0, 0.0)))]), 16, 16)
     assert "12 bytes a triangle" in str(err.value)
 
 

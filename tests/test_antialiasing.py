@@ -8,14 +8,22 @@ import subprocess
 
 import numpy as np
 import pytest
-from reference import _test_camera, edge_mask, quad_mesh, reference_of, scene_triangles, unlit
 
 from guaca_py import Renderer
-from guaca_py.accuracy import rmse_255, supersampled
 from guaca_py.antialiasing import device_samples, method_refusal, with_samples
 from guaca_py.errors import ConfigError, UnsupportedMethodError
 from guaca_py.methods import method_class, method_ids
 from guaca_py.pipeline.config import load_pipeline, pipeline_from_text
+from guaca_py.reference import (
+    edge_mask,
+    origin_camera,
+    quad_mesh,
+    reference_of,
+    rmse_255,
+    scene_triangles,
+    supersampled,
+    unlit,
+)
 from guaca_py.scene.graph import MeshData, Node, Scene, Transform
 
 EXACT = load_pipeline("exact")
@@ -35,7 +43,7 @@ def random_quads(seed: int, n: int = 10) -> Scene:
         for i in range(n)
     ]
     nodes.append(Node("opaque", Transform((0.3, -0.2, -1.5), (10, 20, 5)), quad_mesh(0.9, 0.7), unlit((0.9, 0.9, 0.8))))
-    return Scene(camera=_test_camera(), background=(0.05, 0.08, 0.12), nodes=nodes)
+    return Scene(camera=origin_camera(), background=(0.05, 0.08, 0.12), nodes=nodes)
 
 
 @pytest.fixture(scope="module")
@@ -120,7 +128,7 @@ def half_screen_scene(alpha: float = 0.5, behind: bool = False) -> Scene:
     nodes = [Node("left", Transform((-2.0, 0.0, 0.0)), quad_mesh(2.0, 3.0), unlit((1.0, 0.2, 0.1), alpha))]
     if behind:
         nodes.append(Node("behind", Transform((0.7, 0.6, -1.0)), quad_mesh(4.0, 4.0), unlit((0.1, 0.9, 0.2), 0.5)))
-    return Scene(camera=_test_camera(), background=(0.05, 0.08, 0.12), nodes=nodes)
+    return Scene(camera=origin_camera(), background=(0.05, 0.08, 0.12), nodes=nodes)
 
 
 def test_half_covered_pixel_stores_half_the_samples(aa_renderers):
@@ -246,7 +254,7 @@ def test_compute_raster_clips_each_sample_at_near_and_far(renderer_factory):
             quad("far", [(-2, -1.5, -1), (2, -1.5, -6), (2, 1.5, -12), (-2, 1.5, -7)], (0.9, 0.3, 0.1)),
             quad("near", [(-0.4, -0.4, 4.6), (0.4, -0.4, 4.2), (0.4, 0.4, 2.0), (-0.4, 0.4, 3.0)], (0.1, 0.8, 0.3)),
         ]
-        camera = dataclasses.replace(_test_camera(), near=near, far=far)
+        camera = dataclasses.replace(origin_camera(), near=near, far=far)
         return Scene(camera=camera, background=(0.05, 0.08, 0.12), nodes=nodes)
 
     clipped, whole = scene(1.0, 9.0), scene(0.01, 100.0)
@@ -291,7 +299,7 @@ def test_opaque_only_scene_is_antialiased(aa_renderers):
     """Without transparent draws the multisampled G-buffer alone is resolved: exact inside, blended at edges."""
     size = 48
     nodes = [Node("tri", Transform((0.0, 0.0, 0.0), (0.0, 0.0, 17.0)), quad_mesh(1.2, 0.8), unlit((0.9, 0.6, 0.2)))]
-    scene = Scene(camera=_test_camera(), background=(0.05, 0.08, 0.12), nodes=nodes)
+    scene = Scene(camera=origin_camera(), background=(0.05, 0.08, 0.12), nodes=nodes)
     ref, edges, _ = reference_of(scene, size, size)
     frame = aa_renderers(4).render(scene, size, size)
     assert frame.stats["fragments"] == {"stored": 0}

@@ -2,20 +2,17 @@
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-import breaking_points  # noqa: E402
+from guaca_py.benchmarking import breaking_points
+from guaca_py.methods import method_class
 
 EXACT_255 = 2.0
 
 
 @pytest.fixture(scope="module")
-def sweep(tmp_path_factory, gl_context):
-    return breaking_points.run(tmp_path_factory.mktemp("bp"), 48, [2, 12])
+def sweep(gl_context):
+    return breaking_points.run(gl_context, 48, [2, 12], progress=lambda _: None)
 
 
 def test_every_config_measured_at_every_depth(sweep):
@@ -25,8 +22,7 @@ def test_every_config_measured_at_every_depth(sweep):
 
 def test_bounded_exact_configs_exact_until_their_counter_fires(sweep):
     for r in sweep["rows"]:
-        exact_method = breaking_points.method_class(r["method"]).exact
-        if exact_method and not r["counted"]:
+        if method_class(r["method"]).exact and not r["counted"]:
             assert r["max_255"] <= EXACT_255, r
         if r["counter"] not in (None, "early_termination_culled") and r["counted"]:
             # a limit that cut fragments is also named in the frame's warnings (early

@@ -13,19 +13,12 @@ import types
 import numpy as np
 import pytest
 from conftest import quad_node, simple_scene
-from reference import (
-    ReferenceCache,
-    compare,
-    edge_mask,
-    interpenetrating_scene,
-    layered_quads_scene,
-    triangle_mesh,
-    unlit,
-)
+from exact_frames import ReferenceCache
 
 from guaca_py.antialiasing import with_samples
 from guaca_py.errors import ConfigError, UnsupportedMethodError
 from guaca_py.pipeline.config import load_pipeline
+from guaca_py.reference import compare, edge_mask, interpenetrating_scene, layered_quads_scene, triangle_mesh, unlit
 from guaca_py.scene.graph import Light, MaterialInstance, MeshData, Node, Transform
 
 SIZE = 96
@@ -665,7 +658,7 @@ def test_auto_takes_compute_for_every_size_where_the_method_asks(renderer_factor
     ],
 )
 def test_auto_raster_order_is_depth_with_early_termination_else_tile(renderer_factory, method, expected):
-    # the measured rule (benchmarks/results/h100/raster_order/orders.md): early termination culls
+    # the measured rule (docs/decisions.md, 2026-11-23 "the triangle order"): early termination culls
     # most in depth order, the others walk and composite fastest over tile-ordered pools
     r = renderer_factory("exact", method=method)
     assert r.method.raster_order() == expected

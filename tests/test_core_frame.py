@@ -6,16 +6,17 @@ import re
 
 import numpy as np
 import pytest
-import reference
 from conftest import quad_node, simple_scene
-from reference import compare, interpenetrating_scene, layered_quads_scene
+
+from guaca_py.reference import compare, interpenetrating_scene, layered_quads_scene
+from guaca_py.reference import reference_of as cpu_reference
 
 SIZE = 96
 
 
 def reference_of(scene, w=SIZE, h=SIZE):
     """Reference image, edge exclusion mask and per-pixel layer counts at this module's size."""
-    return reference.reference_of(scene, w, h)
+    return cpu_reference(scene, w, h)
 
 
 @pytest.mark.parametrize("method", ["presort_lf", "presort_lf_et"])

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from reference import layered_quads_scene
 
 from guaca_py.gl_state import raw_gl
 from guaca_py.gpu_counters import CounterBlock, FencedCopies, StagedReader, UploadBuffer
+from guaca_py.reference import layered_quads_scene
 
 SIZE = 64
 

@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import reference
-from reference import compare, quad_mesh, unlit
 
 from guaca_py.cli import main
+from guaca_py.reference import compare, quad_mesh, reference_of, unlit
 from guaca_py.scene.files import load_any
 from guaca_py.scene.gltf import load_gltf
 from guaca_py.scene.graph import Node, Scene
@@ -143,7 +142,7 @@ def _reference_scene(content) -> Scene:
 def test_alpha_modes_match_reference(renderer_factory, glb, method):
     content = load_gltf(glb)
     scene = Scene(camera=content.camera, background=(0.1, 0.1, 0.1), nodes=content.nodes)
-    ref, mask, layers = reference.reference_of(_reference_scene(content), SIZE, SIZE)
+    ref, mask, layers = reference_of(_reference_scene(content), SIZE, SIZE)
     frame = renderer_factory("exact", method=method).render(scene, SIZE, SIZE)
     err = compare(frame.image, ref, mask)
     assert err["max_abs_255"] <= 2.0, err

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -431,6 +432,7 @@ def test_benchmark_script_runs_tiny(tmp_path):
         [
             sys.executable,
             str(ROOT / "benchmarks" / "light_culling.py"),
+            "--out",
             str(out),
             "--size",
             "64",
@@ -446,6 +448,7 @@ def test_benchmark_script_runs_tiny(tmp_path):
         text=True,
         timeout=120,
         cwd=ROOT,
+        env={**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))},
     )
     assert proc.returncode == 0, proc.stderr
     data = json.loads((out / "light_culling.json").read_text())

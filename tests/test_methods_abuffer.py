@@ -9,13 +9,9 @@ import dataclasses
 import numpy as np
 import pytest
 from conftest import quad_node, simple_scene
-from reference import (
-    ReferenceCache,
-    compare,
-    layered_quads_scene,
-    render_interpenetrating_exactly,
-    render_layered_exactly,
-)
+from exact_frames import ReferenceCache, render_interpenetrating_exactly, render_layered_exactly
+
+from guaca_py.reference import compare, layered_quads_scene
 
 SIZE = 96
 METHODS = ["presort_lf_merge2_et", "presort_cs", "presort_cs_et", "post_sort", "post_merge16"]

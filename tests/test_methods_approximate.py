@@ -7,11 +7,11 @@ import math
 
 import numpy as np
 import pytest
-import reference
 from conftest import quad_node, simple_scene
-from reference import compare, interpenetrating_scene, layered_quads_scene
 
 from guaca_py.errors import ConfigError
+from guaca_py.reference import compare, interpenetrating_scene, layered_quads_scene
+from guaca_py.reference import reference_of as cpu_reference
 from guaca_py.scene.graph import Light, MaterialInstance
 
 SIZE = 96
@@ -39,7 +39,7 @@ CONFIGS = [
 
 def reference_of(scene, w=SIZE, h=SIZE):
     """Reference image, edge exclusion mask and per-pixel layer counts at this module's size."""
-    return reference.reference_of(scene, w, h)
+    return cpu_reference(scene, w, h)
 
 
 @pytest.fixture(scope="module")

@@ -7,7 +7,15 @@ import functools
 import numpy as np
 import pytest
 from conftest import lit_demo_difference, quad_node, simple_scene
-from reference import compare, edge_mask, interpenetrating_scene, layered_quads_scene, render_reference, scene_triangles
+
+from guaca_py.reference import (
+    compare,
+    edge_mask,
+    interpenetrating_scene,
+    layered_quads_scene,
+    render_reference,
+    scene_triangles,
+)
 
 METHODS = ["dfb", "sbuffer", "paged_ll"]
 SIZE = 96

@@ -11,13 +11,9 @@ import subprocess
 import numpy as np
 import pytest
 from conftest import lit_demo_difference, quad_node, simple_scene
-from reference import (
-    ReferenceCache,
-    compare,
-    layered_quads_scene,
-    render_interpenetrating_exactly,
-    render_layered_exactly,
-)
+from exact_frames import ReferenceCache, render_interpenetrating_exactly, render_layered_exactly
+
+from guaca_py.reference import compare, layered_quads_scene
 
 SIZE = 64
 METHODS = [

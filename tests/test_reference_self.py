@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from reference import (
+
+from guaca_py.reference import (
     camera_rays,
     compare,
     edge_mask,
@@ -17,7 +18,6 @@ from reference import (
     triangle_mesh,
     unlit,
 )
-
 from guaca_py.scene.graph import Camera, MaterialInstance, Node, Scene, Transform
 
 BG = (0.1, 0.2, 0.3)

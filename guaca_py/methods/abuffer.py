@@ -104,7 +104,7 @@ class ABuffer(TransparencyMethod):
         if lock == "auto" and compute_kernels_draw(settings.get("raster"), caps):
             # the interlock exists only in fragment shaders, and the compute rasterizer with the
             # spin lock was the faster pair on every Table 1 scene on the H100 (presort_cs_et,
-            # benchmarks/results/h100/final/paper_table_{compute,hardware}.md: dragons 7.7 against
+            # docs/decisions.md, 2026-11-23 "presort_cs takes the spin lock": dragons 7.7 against
             # 20.5 ms, Sponza v1 3.3 against 11.5, v2 3.5 against 13.6, hairball_v1 11.1 against 123)
             lock = "spin"
             if settings.get("raster") == "auto":

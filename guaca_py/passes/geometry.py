@@ -55,7 +55,7 @@ class GeometryPass(Pass):
         # reads the colour targets only where an opaque surface was drawn. A depth buffer nothing
         # has written since its last clear is not cleared again: only opaque draws write it
         # (transparent passes test against it with writes off), and on the H100 the clear took
-        # 0.07 ms of a 1024² frame, 0.25 ms at 4 samples (benchmarks/results/h100/depth_clear/).
+        # 0.07 ms of a 1024² frame, 0.25 ms at 4 samples (docs/decisions.md, 2026-11-25 "the G-buffer depth").
         if frame.draws and (has_opaque or not self._depth_clean):
             self._depth_only.depth_mask = True  # transparent passes leave it off
             self._depth_only.clear(depth=1.0)

@@ -339,7 +339,7 @@ class LightCullingPass(Pass):
             return {"light_grid": False, "max_light_layers": 1}
         how = self.settings["tile_bits"]
         if how == "auto":
-            # Measured on the H100 (1024², benchmarks/results/h100/light_culling*): a per-pixel array of
+            # Measured on the H100 (1024², docs/decisions.md, 2026-11-23 "light grid bits"): a per-pixel array of
             # 32 layers cost 13.5 ms of composite against 7.3 ms fetching per fragment; past 64 layers
             # the per-fragment fetches of empty layers dominate (4096 lights: 54.3 vs 32.7 ms).
             how = "cache" if self.layers_allocated > CACHE_TILE_BITS_ABOVE else "fetch"

@@ -27,8 +27,8 @@ RASTER_ORDER_SETTING = Setting(
 
 # `auto` takes the compute rasterizer for a draw whose visible triangles cover at most this many
 # pixels on average (estimated from a fixed sample). On the H100 (benchmarks/results/h100/
-# raster_sweep/) compute stored fragments 4-15x faster than the hardware at every size measured,
-# 0.5 to 16384 px², and Table 1's dragons and Sponza 2.8-5x (paper_table_raster/): the bound is
+# raster_sweep/; docs/decisions.md, 2026-11-23 "raster: auto") compute stored fragments 4-15x faster
+# than the hardware at every size measured, 0.5 to 16384 px², and Table 1's dragons and Sponza 2.8-5x: the bound is
 # the largest size measured, beyond which nothing is known.
 AUTO_MAX_MEAN_AREA_PX = 16384.0
 SAMPLE_TRIANGLES = 256  # triangles per mesh sampled for the estimate (fixed seed, cached)

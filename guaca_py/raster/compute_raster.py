@@ -75,7 +75,7 @@ SMALL_AREA = 128  # candidate boxes up to this many pixels may be rasterized by 
 # box: one thread would shade its many fragments one after another and hold its SIMD group back,
 # a workgroup shades them side by side. The box alone is no measure: a sliver's box is large and its fragments few (hairball_v1: boxes of
 # ~18 px, 5 px² on average, fastest on one thread), a close-up strand's box and area both large
-# (hairball_v2: 72 px, 41 px²). On the H100 (benchmarks/results/h100/small_area/) 16 px² took
+# (hairball_v2: 72 px, 41 px²). On the H100 (docs/decisions.md, 2026-11-25 "one-thread bounds") 16 px² took
 # hairball_v2 from 15.8 to 12.4 ms and Sponza v1 from 1.58 to 1.25 ms and left the dragons and
 # hairball_v1 as they were; 8 px² gained more on those two but sent a third of hairball_v1's
 # strands out of their depth order (early termination then culled less: 4.6 -> 6.0 ms).
@@ -278,7 +278,7 @@ class ComputeRasterizer:
 
         (Back to front with early termination, measured on the dragons, saved 0.2 ms at 1 sample and
         1.6 ms at 4, but it then culls nothing while the composite still stops at the threshold: what
-        the threshold hides would go uncounted. benchmarks/results/h100/aa_variants/README.md.)
+        the threshold hides would go uncounted. docs/decisions.md, 2026-11-25 "the dragons' 4-sample time".)
         """
         return bool(getattr(method, "early_termination", False))
 
