@@ -135,8 +135,13 @@ class ShaderLibrary:
         return self.program({"compute_shader": (template, variables)}, label=template)
 
 
+_SCALARS = frozenset((str, int, float, bool, type(None)))
+
+
 def _freeze(value):
     """A hashable form of a template variable (lists and dicts become tuples)."""
+    if type(value) in _SCALARS:
+        return value
     if isinstance(value, dict):
         return tuple(sorted((k, _freeze(v)) for k, v in value.items()))
     if isinstance(value, (list, tuple)):
@@ -145,8 +150,17 @@ def _freeze(value):
 
 
 def program_key(stages: dict[str, tuple[str, dict]]) -> tuple:
-    """The cache key of a program: each stage's template and its variables, frozen."""
-    return tuple(sorted((stage, tpl, _freeze(vars_)) for stage, (tpl, vars_) in stages.items()))
+    """The cache key of a program: each stage's template and its variables, frozen.
+
+    Derived on every look-up (each frame, per material and kernel): scalars, nearly all of the
+    variables, go in as they are, without a call each.
+    """
+    return tuple(
+        sorted(
+            (stage, tpl, tuple(sorted((k, v if type(v) in _SCALARS else _freeze(v)) for k, v in vars_.items())))
+            for stage, (tpl, vars_) in stages.items()
+        )
+    )
 
 
 def mat_bytes(m) -> bytes:
