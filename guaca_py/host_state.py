@@ -107,7 +107,7 @@ _TEXTURE_TARGETS = (
     (0x8069, 0x0DE1),  # 2D
     (0x8C1D, 0x8C1A),  # 2D_ARRAY
 )
-_TEXTURE_UNITS = 32  # units 0..31 (every Texture slot: tests/test_slots.py) plus moderngl's default unit
+_TEXTURE_UNITS = 32  # units 0..31 (every Texture slot: tests/shaders/test_slots.py) plus moderngl's default unit
 _IMAGE_UNITS = 16
 _IMAGE = (0x8F3A, 0x8F3B, 0x8F3C, 0x8F3D, 0x8F3E, 0x906E)  # name, level, layered, layer, access, format
 

@@ -551,7 +551,7 @@ def quads_reference(renderer_factory):
 
     def ref(raster: str) -> np.ndarray:
         # the two rasterizers snap vertices a rounding apart and so differ in a few edge pixels
-        # (tests/test_compute_raster.py bounds that): exact methods agree given the same coverage
+        # (tests/raster/test_compute_raster.py bounds that): exact methods agree given the same coverage
         if raster not in refs:
             r = renderer_factory("exact", method="presort_lf", method_overrides={"raster": raster})
             refs[raster] = r.render(scene, 400, 400).image.astype(int)

@@ -8,7 +8,7 @@ Each slot belongs to a group of the programs that bind it. Two slots of one kind
 number only where no program binds both: the slots of one group belong to programs that never
 run as one (one transparency method per frame, one rasterizer kernel at a time), and a group's
 `meets` lists the groups whose slots can be bound in one program beside its own (their numbers
-must differ: tests/test_slots.py checks this table and every program the tests compile).
+must differ: tests/shaders/test_slots.py checks this table and every program the tests compile).
 guaca binds no uniform or atomic-counter buffers by index: every buffer slot is a storage buffer.
 """
 

@@ -19,7 +19,7 @@ from guaca_py.passes.light_grid_cpu import compare_grids, exact_tile_lights
 from guaca_py.scene.graph import Camera, Light, MaterialInstance, Node, Scene, Transform
 from guaca_py.scene.loader import load_scene
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def pipeline(mode: str, tile: int = 16, extra: str = "", max_lights: int = 1024, tile_bits: str = "auto"):

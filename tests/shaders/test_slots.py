@@ -22,7 +22,7 @@ from guaca_py.scene.loader import demo_scene
 from guaca_py.shaders import ShaderLibrary, slots
 from guaca_py.shaders.slots import KINDS, Texture
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 TEMPLATES = sorted(builtin_dir("shader_templates").rglob("*.j2"))
 KIND = {k.__name__: k for k in KINDS}
 NAME_USE = re.compile(r"\b(Buffer|Image|Texture)\.([A-Za-z_]\w*)")

@@ -21,7 +21,7 @@ from guaca_py.benchmarking import (
     top_clock,
 )
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def clock(mhz: float) -> dict:
