@@ -93,7 +93,6 @@ class ABuffer(TransparencyMethod):
         self._links = self._nodes = self._counters = self._cull = None
         self._pixels = 0
         self.capacity = 0  # nodes in the pool, node 0 included
-        self.regrown = 0
         self._want = 0  # pool size requested for the next prepare()
         self._last = {}
         self._counts: dict[str, int] | None = None
@@ -255,19 +254,18 @@ class ABuffer(TransparencyMethod):
             frame.stats.warn(f"{c['guard']} insertions hit max_steps and were dropped")
         auto = self.settings["budget_mb"] == "auto"
         grow = self.capacity < self.max_capacity(self._pixels)
+        redraws = frame.stats.get("regrown", 0)  # re-draws of this frame so far (pipeline/retry.py)
         if c["overflow"] and auto and late:
             self.capacity_request(int(requested * 1.15) + 1024)  # for the next frame
             return False
-        if c["overflow"] and auto and self.regrown < self.settings["max_regrow"] and grow:
-            self.regrown += 1
-            self.capacity_request(int(requested * 1.15) + 1024)
+        if c["overflow"] and auto and redraws < self.settings["max_regrow"] and grow:
+            self.capacity_request(int(requested * 1.15) + 1024, last=redraws + 1 >= self.settings["max_regrow"])
             return True
         target = max(1024, int(requested * 1.15) + 1024)
         if auto and not c["overflow"] and target * 3 < self.capacity * 2:
             # hold what the scene needs: shrink for the next frame once a third of the pool idles
             # (growth adds 15%, so a steady scene does not oscillate)
             self.capacity_request(target)
-        self.regrown = 0  # max_regrow bounds the re-renders of one frame, not of the renderer's life
         return False
 
     def after_composite(self, frame) -> None:
@@ -305,16 +303,15 @@ class ABuffer(TransparencyMethod):
             self._counts = self._counters.read()
         return self._counts
 
-    def capacity_request(self, nodes: int) -> None:
+    def capacity_request(self, nodes: int, last: bool = False) -> None:
         """Resize the pool at the next prepare() (the current frame keeps reading this one), within the device's limit.
 
         With early termination an overflowed frame asks for more than it needs (dropped fragments
         saturate nothing, so the fragments behind them ask for nodes too; measured on a 300-layer
         front-to-back stack: 1.2M asked, 45k needed), so growth is bounded to 4x per re-render there
-        except on the last re-render max_regrow allows, which takes the whole request so the frame
-        is complete; without early termination the request is exact.
+        except on the last re-render max_regrow allows (`last`), which takes the whole request so the
+        frame is complete; without early termination the request is exact.
         """
-        last = self.regrown >= self.settings["max_regrow"]
         if self.early_termination and nodes > self.capacity and not last:
             nodes = min(nodes, 4 * max(self.capacity, 1024))
         self._want = min(nodes, self.max_capacity(self._pixels))

@@ -146,7 +146,6 @@ class ComputeRasterizer:
         self._fresh = True  # the next draw starts a geometry pass: reset the state
         self._frame = None  # the frame being drawn (a new one always starts afresh)
         self._triangles = 0
-        self.regrown = 0
         self.tile = TILE  # tunable per renderer (raster_sweep.py --tile, --small-area; aa_cost.py --small-fragments)
         self.small_area = SMALL_AREA
         self.small_fragments = SMALL_FRAGMENTS
@@ -451,28 +450,27 @@ class ComputeRasterizer:
         if self._stages is not None:  # stage profiling: this frame's spans (waits for the GPU)
             spans = self._stages.spans_ms()
             frame.stats["raster"]["compute"]["stage_ms"] = {k: round(v, 4) for k, v in spans.items()}
-        frame.stats.setdefault("memory", {}).update(self.memory(c["large_peak"], c["jobs_peak"]))
+        frame.stats.section("memory").update(self.memory(c["large_peak"], c["jobs_peak"]))
         if self._adjacency_bytes:  # antialiasing.merge: the edge neighbours of this frame's meshes
             frame.stats["memory"]["raster_adjacency"] = sum(self._adjacency_bytes.values())
             self._adjacency_bytes.clear()
         dropped = c["large_dropped"] or c["jobs_dropped"]
         if dropped and late:  # grow for the next frame; this one is not rendered again
             self._grow(c)
-            frame.stats.setdefault("warnings", []).append(
+            frame.stats.warn(
                 f"compute raster: {c['large_dropped']} large triangles and {c['jobs_dropped']} tile jobs dropped "
                 "in the previous frame; the queues grow for the next"
             )
             return False
-        if dropped and self.regrown < MAX_REGROW:
-            self.regrown += 1
+        redraws = frame.stats.get("regrown", 0)  # re-draws of this frame so far (pipeline/retry.py)
+        if dropped and redraws < MAX_REGROW:
             self._grow(c)
             return True
         if dropped:
-            frame.stats.setdefault("warnings", []).append(
+            frame.stats.warn(
                 f"compute raster: {c['large_dropped']} large triangles and {c['jobs_dropped']} tile jobs dropped "
-                f"(queue {self.large_capacity}, jobs {self.job_capacity} per draw) after {self.regrown} regrowths"
+                f"(queue {self.large_capacity}, jobs {self.job_capacity} per draw) after {redraws} re-draws"
             )
-        self.regrown = 0
         return False
 
     def _grow(self, c: dict) -> None:
