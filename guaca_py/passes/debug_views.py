@@ -6,6 +6,7 @@ import numpy as np
 
 from ..pipeline.settings import Setting, positive
 from ..registry import register
+from ..shaders.slots import Buffer
 from .base import FullscreenPass
 
 # Evenly spaced anchors of the heat scale, 0 (black) to max (red); the GLSL interpolates them linearly.
@@ -145,6 +146,10 @@ class DebugDepthComplexityPass(_HeatView):
             label=self.name,
         )
 
+    def __init__(self, device, settings, readers=None):
+        super().__init__(device, settings, readers)
+        self._count_max = None  # one uint: the frame's largest per-pixel count (a scale for the next frame)
+
     def execute(self, frame) -> None:
         """Draw the depth-complexity heat map, or report why the method's storage cannot be read."""
         store = frame.resources["transparent"]
@@ -158,6 +163,11 @@ class DebugDepthComplexityPass(_HeatView):
         self._set_heat(prog)
         if store is not None:
             store.bind(frame, prog)
+        self.target(frame)  # a resize reallocates (release()) before the count buffer is bound
+        if self._count_max is None:
+            self._count_max = self.ctx.buffer(reserve=4)
+        self._count_max.clear()
+        self._count_max.bind_to_storage_buffer(Buffer.DEBUG_COUNT_MAX)
         tex = self.run_fullscreen(frame, prog, {})
         self._finish(
             frame,
@@ -168,6 +178,20 @@ class DebugDepthComplexityPass(_HeatView):
                 "stored": int(frame.stats.get("fragments", {}).get("stored", 0)),
             },
         )
+
+    def collect(self, frame) -> None:
+        """The frame's largest per-pixel count into the stats (`pixel_max`): what a scale fitted to the frame tops at."""
+        info = frame.stats.get("debug_views", {}).get(self.name, {})
+        if info.get("supported"):
+            self.ctx.memory_barrier()  # the fragment shader's atomics before the read
+            info["pixel_max"] = int(np.frombuffer(self._count_max.read(), np.uint32)[0])
+
+    def release(self) -> None:
+        """Free the target and the count buffer."""
+        super().release()
+        if self._count_max is not None:
+            self._count_max.release()
+            self._count_max = None
 
 
 __all__ = [

@@ -64,13 +64,17 @@ class Buffer(Kind):
         "method": Group(
             "the transparency method's geometry, raster and composite programs; one method runs per "
             "frame, so methods reuse each other's numbers",
-            frozenset({"lights", "raster"}),
+            frozenset({"lights", "raster", "debug"}),
         ),
         "raster": Group(
             "the compute rasterizer's kernels; the fine kernel hosts the method's fragment code, so "
             "they bind above the method's numbers (9 holds the mesh for the vertex stage, the keys "
             "for the order stage)",
             frozenset({"lights", "method"}),
+        ),
+        "debug": Group(
+            "the debug views' own buffers, bound beside the method's (the depth-complexity view walks its lists)",
+            frozenset({"method"}),
         ),
         "kernel": Group("stand-alone compute kernels that bind nothing else: each starts at 0"),
     }
@@ -110,6 +114,9 @@ class Buffer(Kind):
         14, "raster", "the order stage's bucket counts: raster/order.comp.j2, raster/order_scan.comp.j2"
     )
     RASTER_ORDER = Slot(15, "raster", "triangle indices in drawing order: raster/order.comp.j2, raster/setup.comp.j2")
+    DEBUG_COUNT_MAX = Slot(
+        6, "debug", "the depth-complexity view's largest per-pixel count: post/debug_depth_complexity.frag.j2"
+    )
     FILL_TARGET = Slot(0, "kernel", "the buffer a fill kernel sets: counted/fill.comp.j2, approx/fill.comp.j2")
     SCAN_IN = Slot(0, "kernel", "prefix sum input: counted/scan_blocks.comp.j2 (prefix_sum.py)")
     SCAN_OUT = Slot(1, "kernel", "prefix sum output: counted/scan_blocks.comp.j2, counted/scan_add.comp.j2")

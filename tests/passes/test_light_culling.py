@@ -399,7 +399,10 @@ def test_debug_depth_complexity_counts_layers_with_legend(renderer_factory):
     assert (legend == 255).all(axis=-1).sum() > 20  # white tick marks and digits
     bar = legend.reshape(-1, 3)
     assert any(np.abs(bar.astype(float) / 255 - heat_color(8, 8)).max(axis=1) <= 1.5 / 255)  # top of the bar
-    assert frame.stats["debug_views"]["debug_depth_complexity"]["supported"]
+    info = frame.stats["debug_views"]["debug_depth_complexity"]
+    assert info["supported"] and info["pixel_max"] == 5  # the five panes of the centre
+    frame = r.render(simple_scene(_complexity_scene().nodes[:2]), 64, 64)  # a second size, two panes
+    assert frame.stats["debug_views"]["debug_depth_complexity"]["pixel_max"] == 2
 
 
 @pytest.mark.parametrize("method", ["presort_lf", "presort_cs", "presort_lf_merge2_et", "post_sort", "post_merge16"])
