@@ -7,6 +7,10 @@ context current and restores the GL state it changed, so the overlay code needs 
 
 from __future__ import annotations
 
+import textwrap
+import time
+from collections import deque
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
@@ -18,9 +22,10 @@ from ..pipeline.config import PassConfig, load_pipeline
 from ..pipeline.settings import resolve_settings
 from ..registry import PASSES
 from ..renderer import Renderer
+from ..scene.gltf import scene_bounds
 from ..scene.graph import Scene
-from .camera import CameraController
-from .hud import Hud
+from .camera import CAMERA_KEYS, MOVE_KEYS, CameraController
+from .hud import Hud, hud_font
 
 #: view name -> debug pass appended to the pipeline (None: the pipeline as configured)
 VIEWS = {"shaded": None, "depth_complexity": "debug_depth_complexity", "light_count": "debug_light_count"}
@@ -32,12 +37,21 @@ KEYS = {
     "2": "depth complexity",
     "3": "light count",
     "O": "overflow",  # a tiny A-buffer budget, to see overflow handled (and counted) on screen
-    "F": "orbit/fly",
+    **CAMERA_KEYS,
     "P": "screenshot",
     "H": "status line",
 }
+#: the help lines' mouse and held-key part
+MOUSE_HELP = "drag orbit (fly: look) | shift/middle/right drag pan | wheel zoom | hold W/A/S/D/Q/E move"
+#: heat view -> (its debug pass, the stats entry of that pass holding the frame's largest value, unit)
+HEAT_VIEWS = {
+    "depth_complexity": ("debug_depth_complexity", "pixel_max", "fragments/pixel"),
+    "light_count": ("debug_light_count", "tile_max", "lights/tile"),
+}
 STATS_EVERY = 10  # frames between timed frames (timing syncs the GPU once per pass)
 OVERFLOW_BYTES_PER_PIXEL = 4  # the "overflow" key's A-buffer budget: about one node per 9 pixels
+NOTE_SECONDS = 2.0  # how long a note (a screenshot was saved) stays on screen
+FPS_FRAMES = 10  # frames the fps figure averages over
 
 
 def view_pipeline(base, view: str):
@@ -51,13 +65,25 @@ def view_pipeline(base, view: str):
 
 
 class Viewer:
-    """Renders a Scene into a host framebuffer each frame and reacts to named keys and mouse input."""
+    """Renders a Scene into a host framebuffer each frame and reacts to named keys and mouse input.
 
-    def __init__(self, ctx, scene: Scene, pipeline="default", method: str | None = None, view: str = "shaded"):
+    `clock` (seconds, monotonic) times frames, held-key movement and notes; tests pass their own.
+    """
+
+    def __init__(
+        self,
+        ctx,
+        scene: Scene,
+        pipeline="default",
+        method: str | None = None,
+        view: str = "shaded",
+        clock: Callable[[], float] = time.perf_counter,
+    ):
         self.ctx = ctx
         self.scene = scene
         self.pipeline = pipeline
-        self.controller = CameraController(scene.camera)
+        self.clock = clock
+        self.controller = CameraController(scene.camera, scene_bounds(scene.nodes))
         self.renderers: dict[str, Renderer] = {}
         self._applied: dict[str, tuple] = {}  # view -> (method, overflow mode) its renderer runs
         self.view = view
@@ -68,6 +94,11 @@ class Viewer:
         self.frames = 0
         self.last_stats: dict = {}
         self.message = ""
+        self.held: set[str] = set()  # MOVE_KEYS held down: the camera moves each frame by the frame's time
+        self.heat_max: dict[str, int] = {}  # heat view -> top of its scale (the last frame's largest value)
+        self.notes: list[tuple[str, float]] = []  # (text, clock time it goes away)
+        self._intervals: deque[float] = deque(maxlen=FPS_FRAMES)  # seconds between frame starts
+        self._last_frame_at: float | None = None
         self._changed = False  # a key changed what is rendered: time the next frame
         self.screenshot_requests: list[Path] = []
         self.screenshots_taken: list[Path] = []
@@ -92,29 +123,62 @@ class Viewer:
         caps = self.renderer().caps
         return [m for m in method_ids() if method_class(m).unsupported_reason(caps) is None]
 
+    def _render(self, fbo, w: int, h: int, timed: bool):
+        """One guaca frame of the current view into `fbo`, its heat scale (if any) set from the last frame."""
+        r = self.renderer((w, h))
+        heat = HEAT_VIEWS.get(self.view)
+        if heat and self.view in self.heat_max:
+            p = r.pass_named(heat[0])
+            p.settings = {**p.settings, "max": self.heat_max[self.view]}
+        return r.render(self.scene, w, h, target=fbo, read_back=False, stats=timed)
+
+    def _measure_heat(self, stats: dict) -> bool:
+        """Keep the frame's largest heat value as the next scale; returns whether the scale changed."""
+        heat = HEAT_VIEWS.get(self.view)
+        value = stats.get("debug_views", {}).get(heat[0], {}).get(heat[1]) if heat else None
+        if value is None:
+            return False
+        top = max(int(value), 1)  # an empty frame keeps a scale of one
+        changed = self.heat_max.get(self.view) != top
+        self.heat_max[self.view] = top
+        return changed
+
     def frame(self, fbo, size: tuple[int, int] | None = None) -> None:
         """Render one frame into `fbo` (the window's framebuffer), then the status line."""
         w, h = size or fbo.size
+        now = self.clock()
+        dt = 0.0 if self._last_frame_at is None else now - self._last_frame_at
+        self._last_frame_at = now
+        if dt > 0.0:
+            self._intervals.append(dt)
+        self.controller.advance(self.held, dt)
         self.scene.camera = self.controller.camera()
         timed = self.frames % STATS_EVERY == 0 or self._changed
         self._changed = False
         note = ""
+        first_heat_frame = self.view in HEAT_VIEWS and self.view not in self.heat_max
         try:
-            result = self.renderer((w, h)).render(self.scene, w, h, target=fbo, read_back=False, stats=timed)
+            result = self._render(fbo, w, h, timed)
         except GuacaError as exc:  # e.g. a method this view cannot run with: say so, fall back
             note = str(exc).splitlines()[0]
             self.view = "shaded"
-            result = self.renderer((w, h)).render(self.scene, w, h, target=fbo, read_back=False, stats=timed)
+            first_heat_frame = False
+            result = self._render(fbo, w, h, timed)
+        if self._measure_heat(result.stats) and first_heat_frame:
+            result = self._render(fbo, w, h, timed)  # the view's first frame: again, on its own scale
         self.message = note or next(iter(result.stats.get("warnings", [])), "")
         if timed or not self.last_stats:
             self.last_stats = result.stats
         else:
-            self.last_stats["fragments"] = result.stats.get("fragments", {})
+            for key in ("fragments", "debug_views"):  # counters of every frame; times of timed ones
+                self.last_stats[key] = result.stats.get(key, {})
         self.frames += 1
         while self.screenshot_requests:
-            self.screenshots_taken.append(self._save_screenshot(fbo, (w, h), self.screenshot_requests.pop(0)))
+            path = self._save_screenshot(fbo, (w, h), self.screenshot_requests.pop(0))
+            self.screenshots_taken.append(path)
+            self.note(f"screenshot saved: {path}")
         if self.show_hud:
-            self.hud.draw(fbo, self.status_lines())
+            self.hud.draw(fbo, self.hud_lines(w))
 
     def _save_screenshot(self, fbo, size, path: Path) -> Path:
         """The window's pixels as they are after guaca's frame (before the status line)."""
@@ -127,39 +191,92 @@ class Viewer:
         Image.fromarray(np.ascontiguousarray(px)).save(path)
         return path
 
-    def status_lines(self) -> list[str]:
-        """The status line: method, view, per-pass times, fragment counters."""
+    # ------------------------------------------------------------------ status line
+    def note(self, text: str, seconds: float = NOTE_SECONDS) -> None:
+        """Show `text` under the status line for `seconds`."""
+        self.notes.append((text, self.clock() + seconds))
+
+    def fps(self) -> tuple[float, float] | None:
+        """(frames per second, milliseconds per frame) over the last FPS_FRAMES frames, None before the second frame."""
+        if not self._intervals:
+            return None
+        mean = sum(self._intervals) / len(self._intervals)
+        return 1.0 / mean, mean * 1e3
+
+    def heat_scale(self) -> str:
+        """The heat view's scale as text ('' in the shaded view)."""
+        heat = HEAT_VIEWS.get(self.view)
+        if not heat:
+            return ""
+        info = self.last_stats.get("debug_views", {}).get(heat[0], {})
+        if info.get("supported") is False:
+            return "heat: not available for this method"
+        shown = info.get("max_shown", "?")
+        return f"heat scale 0-{shown} {heat[2]} (frame max {info.get(heat[1], '?')})"
+
+    def hud_lines(self, width: int = 0) -> list[tuple[str, str]]:
+        """The status line as (text, kind) lines: fps, method and view; pass times; counters; keys; notes.
+
+        `width` (pixels) wraps the lines to the frame; 0 leaves each on one line.
+        """
         s = self.last_stats
+        rate = self.fps()
+        fps = f"{rate[0]:.1f} fps {rate[1]:.0f} ms/frame" if rate else "fps -"
+        budget = " (tiny A-buffer budget)" if self.overflow_mode else ""
         passes = " ".join(f"{k} {v['ms']:.1f}" for k, v in s.get("passes", {}).items())
         fr = s.get("fragments", {})
-        frags = f"stored {fr.get('stored', 0)}"
+        counters = f"fragments stored {fr.get('stored', 0)}"
         if fr.get("overflow"):
-            frags += f" OVERFLOW {fr['overflow']}"
-        budget = " (tiny A-buffer budget)" if self.overflow_mode else ""
-        line = f"{self.method}{budget} | {self.view} | {self.controller.mode} | ms ({s.get('timer', '?')}): {passes}"
-        lines = [line, f"fragments {frags}", "keys: " + " ".join(f"{k} {v}" for k, v in KEYS.items())]
+            counters += f" OVERFLOW {fr['overflow']}"
+        if self.heat_scale():
+            counters += f" | {self.heat_scale()}"
+        lines = [
+            f"{fps} | {self.method}{budget} | {self.view} | {self.controller.mode}",
+            f"pass ms ({s.get('timer', '?')}): {passes}",
+            counters,
+            "keys: " + "  ".join(f"{k} {v}" for k, v in KEYS.items()),
+            "mouse: " + MOUSE_HELP,
+        ]
+        if width:  # wrap to the frame (a monospaced font: characters of one width)
+            chars = max(int((width - 12) // hud_font().getlength("0")), 40)
+            lines = [part for line in lines for part in textwrap.wrap(line, chars, subsequent_indent="  ")]
+        out = [(line, "status") for line in lines]
+        now = self.clock()
+        self.notes = [(text, until) for text, until in self.notes if until > now]
+        out += [(text, "note") for text, _ in self.notes]
         if self.message:
-            lines.append(self.message)
-        return lines
+            out.append((self.message, "note"))
+        return out
+
+    def status_lines(self) -> list[str]:
+        """The status line's text: fps, method and view; pass times; counters and heat scale; keys; notes."""
+        return [text for text, _ in self.hud_lines()]
 
     # ------------------------------------------------------------------ input
     def key(self, name: str) -> None:
         """React to a key by name (see KEYS)."""
         self._changed = True
         if name in ("M", "N"):
-            methods = self.runnable_methods()
-            i = methods.index(self.method) if self.method in methods else 0
-            self.method = methods[(i + (1 if name == "M" else -1)) % len(methods)]
+            self.method = cycle(self.runnable_methods(), self.method, 1 if name == "M" else -1)
         elif name in ("1", "2", "3"):
             self.view = list(VIEWS)[int(name) - 1]
         elif name == "O":
             self.overflow_mode = not self.overflow_mode
-        elif name == "F":
-            self.controller.toggle_mode()
         elif name == "P":
             self.screenshot_requests.append(Path(f"guaca_screenshot_{len(self.screenshots_taken):03d}.png"))
         elif name == "H":
             self.show_hud = not self.show_hud
+        else:
+            self.controller.key(name)
+
+    def hold(self, name: str, down: bool) -> None:
+        """A movement key (MOVE_KEYS) went down or up: held keys move the camera every frame."""
+        if name not in MOVE_KEYS:
+            return
+        if down:
+            self.held.add(name)
+        else:
+            self.held.discard(name)
 
     def release(self) -> None:
         """Free every renderer and the overlay."""
@@ -167,3 +284,9 @@ class Viewer:
             r.release()
         self.renderers.clear()
         self.hud.release()
+
+
+def cycle(items: list[str], current: str, step: int) -> str:
+    """The item `step` places after `current` in `items`, wrapping around (the first if `current` is not there)."""
+    i = items.index(current) if current in items else 0
+    return items[(i + step) % len(items)]

@@ -7,8 +7,7 @@ from pathlib import Path
 from ..errors import DeviceError
 from ..scene.graph import Scene
 from .app import KEYS, Viewer
-
-FLY_KEYS = {"W": (1, 0, 0), "S": (-1, 0, 0), "A": (0, -1, 0), "D": (0, 1, 0), "E": (0, 0, 1), "Q": (0, 0, -1)}
+from .camera import LEFT, MIDDLE, MOVE_KEYS, RIGHT
 
 
 def _window_class(headless: bool):
@@ -20,6 +19,31 @@ def _window_class(headless: bool):
         ) from exc
     name = "headless" if headless else None
     return mglw, mglw.get_local_window_cls(name)
+
+
+def connect(window, viewer: Viewer) -> None:
+    """Route a moderngl-window window's key, drag and scroll events to `viewer`."""
+    keys = window.keys
+    codes = {getattr(keys, k if not k.isdigit() else f"NUMBER_{k}", None): k for k in list(KEYS) + list(MOVE_KEYS)}
+    codes.pop("undefined", None)  # a toolkit without keys (headless) names every key so
+    codes.pop(None, None)
+
+    def on_key(key, action, modifiers):
+        name = codes.get(key)
+        if name in MOVE_KEYS:  # held: the camera moves every frame until the key comes up
+            viewer.hold(name, action == keys.ACTION_PRESS)
+        elif name in KEYS and action == keys.ACTION_PRESS:
+            viewer.key(name)
+
+    def on_drag(x, y, dx, dy):
+        buttons = window.mouse_states
+        button = LEFT if buttons.left else MIDDLE if buttons.middle else RIGHT if buttons.right else 0
+        modifiers = ("Shift",) if window.modifiers.shift else ()
+        viewer.controller.pointer_drag(dx, dy, button, modifiers, window.size[1])
+
+    window.key_event_func = on_key
+    window.mouse_drag_event_func = on_drag
+    window.mouse_scroll_event_func = lambda dx, dy: viewer.controller.zoom(dy)
 
 
 def run_viewer(
@@ -55,23 +79,7 @@ def run_viewer(
         ) from exc
     mglw.activate_context(window=window)
     viewer = Viewer(window.ctx, scene, pipeline=pipeline, method=method, view=view)
-    keys = window.keys
-    codes = {getattr(keys, k if not k.isdigit() else f"NUMBER_{k}", None): k for k in list(KEYS) + list(FLY_KEYS)}
-    step = max(viewer.controller.distance * 0.05, 1e-3)
-
-    def on_key(key, action, modifiers):
-        name = codes.get(key)
-        if name is None or action != keys.ACTION_PRESS:
-            return
-        if name in FLY_KEYS and viewer.controller.mode == "fly":
-            f, r, u = FLY_KEYS[name]
-            viewer.controller.move(f * step, r * step, u * step)
-        elif name in KEYS:
-            viewer.key(name)
-
-    window.key_event_func = on_key
-    window.mouse_drag_event_func = lambda x, y, dx, dy: viewer.controller.drag(dx, dy)
-    window.mouse_scroll_event_func = lambda dx, dy: viewer.controller.zoom(dy)
+    connect(window, viewer)
     try:
         while not window.is_closing:
             window.use()
