@@ -171,6 +171,16 @@ class FrameResult:
         fmt = Image.registered_extensions().get(path.suffix.lower())
         return write_atomic(path, lambda tmp: Image.fromarray(self.image).save(tmp, format=fmt), "--out")
 
+    def _repr_png_(self) -> bytes:
+        """The image as PNG bytes: a frame that is a notebook cell's value shows itself (IPython's display hook)."""
+        import io
+
+        from PIL import Image
+
+        buf = io.BytesIO()
+        Image.fromarray(self.image).save(buf, format="PNG")
+        return buf.getvalue()
+
     def save_stats(self, path: str | Path) -> Path:
         """Write the statistics as JSON through a temporary file and a rename."""
         from ..output import check_writable, write_atomic
