@@ -42,7 +42,7 @@ KEYS = {
     "H": "status line",
 }
 #: the help lines' mouse and held-key part
-MOUSE_HELP = "drag orbit (fly: look) | shift/middle/right drag pan | wheel zoom | hold W/A/S/D/Q/E move"
+MOUSE_HELP = ("drag orbit (fly: look)", "shift/middle/right drag pan", "wheel zoom", "hold W/A/S/D/Q/E move")
 #: heat view -> (its debug pass, the stats entry of that pass holding the frame's largest value, unit)
 HEAT_VIEWS = {
     "depth_complexity": ("debug_depth_complexity", "pixel_max", "fragments/pixel"),
@@ -223,30 +223,31 @@ class Viewer:
         rate = self.fps()
         fps = f"{rate[0]:.1f} fps {rate[1]:.0f} ms/frame" if rate else "fps -"
         budget = " (tiny A-buffer budget)" if self.overflow_mode else ""
-        passes = " ".join(f"{k} {v['ms']:.1f}" for k, v in s.get("passes", {}).items())
         fr = s.get("fragments", {})
-        counters = f"fragments stored {fr.get('stored', 0)}"
+        counters = [f"fragments stored {fr.get('stored', 0)}"]
         if fr.get("overflow"):
-            counters += f" OVERFLOW {fr['overflow']}"
+            counters[0] += f" OVERFLOW {fr['overflow']}"
         if self.heat_scale():
-            counters += f" | {self.heat_scale()}"
-        lines = [
-            f"{fps} | {self.method}{budget} | {self.view} | {self.controller.mode}",
-            f"pass ms ({s.get('timer', '?')}): {passes}",
-            counters,
-            "keys: " + "  ".join(f"{k} {v}" for k, v in KEYS.items()),
-            "mouse: " + MOUSE_HELP,
-        ]
-        if width:  # wrap to the frame (a monospaced font: characters of one width)
-            chars = max(int((width - 12) // hud_font().getlength("0")), 40)
-            lines = [part for line in lines for part in textwrap.wrap(line, chars, subsequent_indent="  ")]
-        out = [(line, "status") for line in lines]
+            counters.append(self.heat_scale())
         now = self.clock()
         self.notes = [(text, until) for text, until in self.notes if until > now]
-        out += [(text, "note") for text, _ in self.notes]
-        if self.message:
-            out.append((self.message, "note"))
-        return out
+        notes = [text for text, _ in self.notes] + ([self.message] if self.message else [])
+        # each line as its parts and their separator: wrapping breaks between parts, not inside one
+        lines = [
+            ([fps, f"{self.method}{budget}", self.view, self.controller.mode], " | ", "status"),
+            (
+                [f"pass ms ({s.get('timer', '?')}):", *(f"{k} {v['ms']:.1f}" for k, v in s.get("passes", {}).items())],
+                " ",
+                "status",
+            ),
+            (counters, " | ", "status"),
+            (["keys:", *(f"{k} {v}" for k, v in KEYS.items())], "  ", "status"),
+            (["mouse:", *MOUSE_HELP], " | ", "status"),
+            *(([text], "", "note") for text in notes),
+        ]
+        # wrap to the frame: the font is monospaced, so a line's width is its length in characters
+        chars = max(int((width - 12) // hud_font().getlength("0")), 40) if width else 0
+        return [(text, kind) for parts, sep, kind in lines for text in wrap_parts(parts, sep, chars)]
 
     def status_lines(self) -> list[str]:
         """The status line's text: fps, method and view; pass times; counters and heat scale; keys; notes."""
@@ -284,6 +285,23 @@ class Viewer:
             r.release()
         self.renderers.clear()
         self.hud.release()
+
+
+def wrap_parts(parts: list[str], sep: str, chars: int) -> list[str]:
+    """`parts` joined by `sep` into lines of at most `chars` characters (0: one line), breaking only between parts.
+
+    A part longer than a line is broken at its spaces; continued lines are indented by two spaces.
+    """
+    if not chars:
+        return [sep.join(parts)]
+    lines: list[str] = []
+    for part in parts:
+        for piece in textwrap.wrap(part, chars - 2) or [""]:
+            if lines and len(lines[-1]) + len(sep) + len(piece) <= chars:
+                lines[-1] += sep + piece
+            else:
+                lines.append(piece if not lines else "  " + piece)
+    return lines
 
 
 def cycle(items: list[str], current: str, step: int) -> str:

@@ -369,3 +369,18 @@ def test_status_text_keeps_its_spaces():
     img = Image.new("RGB", (80, 20))
     draw_line(ImageDraw.Draw(img), (2, 2), "1 1", thin, (255, 255, 255))
     assert max(gaps(np.asarray(img))) >= thin.getlength("0")
+
+
+def test_wrap_parts_breaks_between_parts():
+    from guaca_py.viewer.app import wrap_parts
+
+    parts = ["keys:", "M next method", "N previous method", "1 shaded", "2 depth complexity", "R reset view"]
+    lines = wrap_parts(parts, "  ", 40)
+    assert lines == ["keys:  M next method  N previous method", "  1 shaded  2 depth complexity", "  R reset view"]
+    assert wrap_parts(parts, "  ", 0) == ["  ".join(parts)]
+    long = wrap_parts(["status", "a part much longer than one line of the status"], " | ", 20)
+    assert all(len(line) <= 20 for line in long) and long[0] == "status"
+    assert (
+        " ".join(line.strip(" |") for line in long).split()
+        == "status a part much longer than one line of the status".split()
+    )
