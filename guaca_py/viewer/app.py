@@ -232,17 +232,15 @@ class Viewer:
         now = self.clock()
         self.notes = [(text, until) for text, until in self.notes if until > now]
         notes = [text for text, _ in self.notes] + ([self.message] if self.message else [])
+        passes = [f"{k} {v['ms']:.1f}" for k, v in s.get("passes", {}).items()]
+        keys = [f"{k} {v}" for k, v in KEYS.items()]
         # each line as its parts and their separator: wrapping breaks between parts, not inside one
         lines = [
             ([fps, f"{self.method}{budget}", self.view, self.controller.mode], " | ", "status"),
-            (
-                [f"pass ms ({s.get('timer', '?')}):", *(f"{k} {v['ms']:.1f}" for k, v in s.get("passes", {}).items())],
-                " ",
-                "status",
-            ),
+            (labelled(f"pass ms ({s.get('timer', '?')}):", passes), " ", "status"),
             (counters, " | ", "status"),
-            (["keys:", *(f"{k} {v}" for k, v in KEYS.items())], "  ", "status"),
-            (["mouse:", *MOUSE_HELP], " | ", "status"),
+            (labelled("keys:", keys), "  ", "status"),
+            (labelled("mouse:", list(MOUSE_HELP)), " | ", "status"),
             *(([text], "", "note") for text in notes),
         ]
         # wrap to the frame: the font is monospaced, so a line's width is its length in characters
@@ -285,6 +283,11 @@ class Viewer:
             r.release()
         self.renderers.clear()
         self.hud.release()
+
+
+def labelled(label: str, parts: list[str]) -> list[str]:
+    """`parts` with `label` and a space before the first (the label stays with it when a line wraps)."""
+    return [f"{label} {parts[0]}", *parts[1:]] if parts else [label]
 
 
 def wrap_parts(parts: list[str], sep: str, chars: int) -> list[str]:
