@@ -310,6 +310,7 @@ def test_status_line_contents(window, scene_file):
         for key, action in KEYS.items():
             assert f"{key} {action}" in help_text
         assert "pan" in help_text and "zoom" in help_text and "W/A/S/D/Q/E" in help_text
+        assert lines[3].startswith("keys: M next method  N") and lines[4].startswith("mouse: drag orbit")
         wrapped = viewer.hud_lines(HUD_W)
         from guaca_py.viewer.hud import hud_font
 
