@@ -124,10 +124,12 @@ class CameraController:
         return True
 
     def fit(self) -> bool:
-        """Frame the scene's bounds from the current direction (returns False without bounds)."""
+        """Frame the scene's bounds from the current direction (returns False without bounds, or empty ones)."""
         if self.bounds is None:
             return False
         lo, hi = (np.asarray(b, dtype=np.float64) for b in self.bounds)
+        if not (hi > lo).any():  # nothing drawn (scene_bounds gives a point): nothing to frame
+            return False
         radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-6)
         half_fov = math.radians(self.initial.fov_y) / 2.0  # the vertical half-angle (the narrower one in landscape)
         self._moved = True

@@ -216,6 +216,9 @@ def test_fit_frames_the_bounds_and_reset_gives_the_scene_camera_back():
     assert fitted.position[0] > 0 and fitted.position[2] < 0  # seen from the same direction as before
     assert c.key("R") and c.camera() is cam
     assert not CameraController(cam).fit()  # no bounds, nothing to fit
+    empty = CameraController(cam, (np.zeros(3), np.zeros(3)))  # scene_bounds of a scene without meshes
+    assert not empty.fit()
+    assert empty.camera() is cam  # the view stays as it was
 
 
 def test_held_keys_move_by_frame_time():
