@@ -43,11 +43,8 @@ KEYS = {
 }
 #: the help lines' mouse and held-key part
 MOUSE_HELP = ("drag orbit (fly: look)", "shift/middle/right drag pan", "wheel zoom", "hold W/A/S/D/Q/E move")
-#: heat view -> (its debug pass, the stats entry of that pass holding the frame's largest value, unit)
-HEAT_VIEWS = {
-    "depth_complexity": ("debug_depth_complexity", "pixel_max", "fragments/pixel"),
-    "light_count": ("debug_light_count", "tile_max", "lights/tile"),
-}
+#: heat view -> (the entry of its debug pass's stats that holds the frame's largest value, its unit)
+HEAT_VIEWS = {"depth_complexity": ("pixel_max", "fragments/pixel"), "light_count": ("tile_max", "lights/tile")}
 STATS_EVERY = 10  # frames between timed frames (timing syncs the GPU once per pass)
 OVERFLOW_BYTES_PER_PIXEL = 4  # the "overflow" key's A-buffer budget: about one node per 9 pixels
 NOTE_SECONDS = 2.0  # how long a note (a screenshot was saved) stays on screen
@@ -126,16 +123,15 @@ class Viewer:
     def _render(self, fbo, w: int, h: int, timed: bool):
         """One guaca frame of the current view into `fbo`, its heat scale (if any) set from the last frame."""
         r = self.renderer((w, h))
-        heat = HEAT_VIEWS.get(self.view)
-        if heat and self.view in self.heat_max:
-            p = r.pass_named(heat[0])
+        if self.view in self.heat_max:
+            p = r.pass_named(VIEWS[self.view])
             p.settings = {**p.settings, "max": self.heat_max[self.view]}
         return r.render(self.scene, w, h, target=fbo, read_back=False, stats=timed)
 
     def _measure_heat(self, stats: dict) -> bool:
         """Keep the frame's largest heat value as the next scale; returns whether the scale changed."""
         heat = HEAT_VIEWS.get(self.view)
-        value = stats.get("debug_views", {}).get(heat[0], {}).get(heat[1]) if heat else None
+        value = stats.get("debug_views", {}).get(VIEWS[self.view], {}).get(heat[0]) if heat else None
         if value is None:
             return False
         top = max(int(value), 1)  # an empty frame keeps a scale of one
@@ -208,11 +204,11 @@ class Viewer:
         heat = HEAT_VIEWS.get(self.view)
         if not heat:
             return ""
-        info = self.last_stats.get("debug_views", {}).get(heat[0], {})
+        info = self.last_stats.get("debug_views", {}).get(VIEWS[self.view], {})
         if info.get("supported") is False:
             return "heat: not available for this method"
         shown = info.get("max_shown", "?")
-        return f"heat scale 0-{shown} {heat[2]} (frame max {info.get(heat[1], '?')})"
+        return f"heat scale 0-{shown} {heat[1]} (frame max {info.get(heat[0], '?')})"
 
     def hud_lines(self, width: int = 0) -> list[tuple[str, str]]:
         """The status line as (text, kind) lines: fps, method and view; pass times; counters; keys; notes.

@@ -330,9 +330,9 @@ def test_status_line_contents(window, scene_file):
 def test_heat_views_scale_to_the_frame(window, scene_file, view, stat):
     from guaca_py.scene.loader import load_scene
     from guaca_py.viewer import Viewer
-    from guaca_py.viewer.app import HEAT_VIEWS
+    from guaca_py.viewer.app import HEAT_VIEWS, VIEWS
 
-    pass_name = HEAT_VIEWS[view][0]
+    pass_name = VIEWS[view]
     viewer = Viewer(window.ctx, load_scene(scene_file), view=view)
     try:
         window.use()
@@ -348,7 +348,7 @@ def test_heat_views_scale_to_the_frame(window, scene_file, view, stat):
         img = _read(window.fbo)[: HUD_H - legend_rows(HUD_H)].astype(float) / 255
         hottest = np.abs(img - heat_color(top, top)).max(axis=-1) <= 1.5 / 255
         assert hottest.sum() > 0  # the frame's largest value reaches the top of the scale (red)
-        assert f"heat scale 0-{top} {HEAT_VIEWS[view][2]} (frame max {top})" in viewer.status_lines()[2]
+        assert f"heat scale 0-{top} {HEAT_VIEWS[view][1]} (frame max {top})" in viewer.status_lines()[2]
     finally:
         viewer.release()
 
