@@ -181,7 +181,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="guaca", description="guaca_py: deferred shading with exact OIT")
     sub = p.add_subparsers(dest="command", required=True)
     r = sub.add_parser("render", help="render a scene file (default: the built-in demo) to PNG")
-    r.add_argument("scene", nargs="?", help="scene YAML or mesh file (default: built-in demo)")
+    r.add_argument("scene", nargs="?", help="scene YAML, glTF or mesh file (default: built-in demo)")
     r.add_argument("--pipeline", default="default", help="pipeline YAML or built-in name (default, exact)")
     r.add_argument("--method", help="transparency method id (see `guaca methods`)")
     r.add_argument(
