@@ -306,12 +306,12 @@ def main(argv: list[str] | None = None) -> int:
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
 
+        paths = scene_paths(args)  # before the device and the workers: a wrong --scenes exits at once
         # spawned, not forked: the workers need no copy of a process that holds a GL context
         spawn = multiprocessing.get_context("spawn")
         pool = ProcessPoolExecutor(args.flip_workers, mp_context=spawn) if args.flip_workers > 0 else None
         device = open_device()
         res = Results(args, device.name, argv)
-        paths = scene_paths(args)
         progress = Progress(len(paths) * len(configs(args.methods, args.samples, not args.no_merged)))
         for path in paths:
             rec = run_scene(device.ctx, path, args, pool, progress)

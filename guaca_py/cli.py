@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 
 from .args_check import check_method_option, check_render_args, parse_set_option
@@ -62,7 +63,11 @@ def _cmd_render(args) -> int:
         frame.stats["timing"] = {"warmup": args.warmup, "frames": m.frames, "statistic": "median"}
     else:
         frame = renderer.render(scene, args.width, args.height)
+    # every file first, then the report: a reader that stops early (`| head -1`) loses lines, not files
     out = frame.save(args.out)
+    if args.stats:
+        frame.save_stats(args.stats)
+    renderer.release()
     s = frame.stats
     print(f"rendered {out} ({s['resolution'][0]}x{s['resolution'][1]}) on {s['device']}")
     timing = s.get("timing")
@@ -86,9 +91,7 @@ def _cmd_render(args) -> int:
     for w in s.get("warnings", []):
         print(f"WARNING: {w}", file=sys.stderr)
     if args.stats:
-        frame.save_stats(args.stats)
         print(f"stats written to {args.stats}")
-    renderer.release()
     return 0
 
 
@@ -178,7 +181,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="guaca", description="guaca_py: deferred shading with exact OIT")
     sub = p.add_subparsers(dest="command", required=True)
     r = sub.add_parser("render", help="render a scene file (default: the built-in demo) to PNG")
-    r.add_argument("scene", nargs="?", help="scene YAML or mesh file (default: built-in demo)")
+    r.add_argument("scene", nargs="?", help="scene YAML, glTF or mesh file (default: built-in demo)")
     r.add_argument("--pipeline", default="default", help="pipeline YAML or built-in name (default, exact)")
     r.add_argument("--method", help="transparency method id (see `guaca methods`)")
     r.add_argument(
@@ -216,9 +219,34 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+#: exit status when the reader of stdout went away: 128 + SIGPIPE, as a shell reports a writer killed by it
+BROKEN_PIPE_STATUS = 141
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Entry point; returns the exit status (2 for bad input or device problems)."""
-    args = build_parser().parse_args(argv)
+    """Entry point; returns the exit status (2 for bad input or device problems, 141 if stdout's reader left)."""
+    try:
+        status = _run(build_parser().parse_args(argv))
+        sys.stdout.flush()  # a closed pipe shows here at the latest, not in the interpreter's exit
+        return status
+    except BrokenPipeError:  # `guaca render | head -1`: the files are written, the rest of the report has no reader
+        _discard_stdout()
+        return BROKEN_PIPE_STATUS
+
+
+def _discard_stdout() -> None:
+    """Point stdout at /dev/null: Python flushes stdout again at exit, which would raise once more."""
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, OSError, ValueError):  # not a file descriptor (a caller's capture): nothing to flush
+        return
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, fd)
+    os.close(devnull)
+
+
+def _run(args: argparse.Namespace) -> int:
+    """Run the parsed command; errors of input or device become a message and exit status 2."""
     try:
         return args.fn(args)
     except GuacaError as exc:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import os
-import tempfile
+import secrets
 from collections.abc import Callable
 from pathlib import Path
 
@@ -40,8 +40,7 @@ def write_atomic(path: str | Path, write: Callable[[Path], None], option: str = 
     p = Path(path)
     try:
         p.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp" + p.suffix, dir=p.parent)
-        os.close(fd)
+        tmp = _new_file_beside(p)
     except OSError as exc:
         raise ConfigError(f"cannot write: {exc.strerror or exc}", p, key=option) from None
     try:
@@ -57,3 +56,19 @@ def write_atomic(path: str | Path, write: Callable[[Path], None], option: str = 
         if os.path.exists(tmp):
             os.unlink(tmp)
     return p
+
+
+def _new_file_beside(p: Path) -> str:
+    """Create an empty, new temporary file in `p`'s directory; its mode follows the umask, as `open` would.
+
+    (tempfile.mkstemp creates 0600 files whatever the umask: renamed over `p`, that would hide
+    every output from the user's group.)
+    """
+    for _ in range(100):
+        tmp = str(p.parent / f".{p.name}.{secrets.token_hex(4)}.tmp{p.suffix}")
+        try:
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))  # the kernel applies the umask
+            return tmp
+        except FileExistsError:
+            continue
+    raise FileExistsError(f"no free temporary name beside {p}")

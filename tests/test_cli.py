@@ -152,3 +152,21 @@ def test_samples_option_overrides_the_pipeline(scene_file, tmp_path, capsys):
     assert main([*args, "--samples", "4", "--method", "dfb", "--out", str(tmp_path / "b.png")]) == 2
     err = capsys.readouterr().err
     assert "dfb" in err and "antialiasing.samples" in err
+
+
+def test_a_reader_that_stops_early_ends_no_traceback(scene_file, tmp_path):
+    """`guaca render ... | head -1`: the first line arrives, the files are written, no BrokenPipeError trace."""
+    out, stats = tmp_path / "o.png", tmp_path / "s.json"
+    cmd = [sys.executable, "-m", "guaca_py", "render", str(scene_file), "--width", "32", "--height", "24"]
+    cmd += ["--out", str(out), "--stats", str(stats)]
+    line = f"{' '.join(cmd)} | head -1"
+    r = subprocess.run(["bash", "-o", "pipefail", "-c", line], capture_output=True, text=True, timeout=120)
+    assert r.stdout.startswith(f"rendered {out} (32x24)") and len(r.stdout.splitlines()) == 1
+    assert "Traceback" not in r.stderr and "BrokenPipeError" not in r.stderr, r.stderr
+    assert r.returncode in (0, 141)  # 141: guaca's own status, when head closed the pipe before the last line
+    assert out.is_file() and json.loads(stats.read_text())["resolution"] == [32, 24]
+    # a reader gone before the first line: every write fails; guaca exits 141, as a shell reports SIGPIPE
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    p.stdout.close()
+    err = p.stderr.read().decode()
+    assert p.wait(timeout=120) == 141 and "Traceback" not in err, err

@@ -96,14 +96,19 @@ def add_reference_args(ap: argparse.ArgumentParser, k: int = 8) -> None:
 
 
 def scene_paths(args: argparse.Namespace) -> list[Path]:
-    """The scene YAMLs of --scenes, only those of --scene-names (in that order) where given."""
+    """The scene YAMLs of --scenes, only those of --scene-names (in that order) where given; exits if there are none."""
     if args.scene_names:
         paths = [args.scenes / f"{name}.yaml" for name in args.scene_names]
         missing = [str(p) for p in paths if not p.is_file()]
         if missing:
             raise SystemExit(f"scenes not found: {', '.join(missing)} (copy ../shared/scenes to .scenes/)")
         return paths
-    return sorted(args.scenes.glob("*.yaml"))
+    if not args.scenes.is_dir():  # a run over no scenes would end in an empty report and exit status 0
+        raise SystemExit(f"--scenes {args.scenes}: no such folder (copy ../shared/scenes to .scenes/)")
+    paths = sorted(args.scenes.glob("*.yaml"))
+    if not paths:
+        raise SystemExit(f"--scenes {args.scenes}: no scene YAML (*.yaml) in this folder")
+    return paths
 
 
 class Results:

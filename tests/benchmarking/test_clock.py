@@ -1,5 +1,5 @@
 """The benchmark harness: clock rules (rows below the maximum SM clock are marked and never compared),
-results folders per device, progress lines, and a benchmark's table rebuilt from its JSON."""
+results folders per device, progress lines, a benchmark's table rebuilt from its JSON, its scenes folder."""
 
 from __future__ import annotations
 
@@ -137,3 +137,14 @@ def test_accuracy_page_marks_rows_below_max_and_refuses_their_ratio(tmp_path):
 def test_accuracy_page_gives_ratio_without_clock(tmp_path):
     md = replot_accuracy(tmp_path, record(None, None, top=None))
     assert "frame time 2.42x" in md and "*" not in md.split("Command")[1].replace("![", "")
+
+
+def test_a_scenes_folder_without_scenes_is_an_error(tmp_path):
+    """`--scenes MISSING` (or a folder of no YAML) exits non-zero with the reason, not with an empty report."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
+    (tmp_path / "empty").mkdir()
+    for scenes, reason in ((tmp_path / "MISSING", "no such folder"), (tmp_path / "empty", "no scene YAML")):
+        cmd = [sys.executable, "benchmarks/accuracy_scenes.py", "--out", str(tmp_path / "out"), "--scenes", str(scenes)]
+        r = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
+        assert r.returncode != 0 and f"--scenes {scenes}: {reason}" in r.stderr, r.stderr
+        assert not (tmp_path / "out").exists()  # nothing written
