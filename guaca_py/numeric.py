@@ -1,6 +1,8 @@
 """Numbers given by users: the allowed ranges they are checked against, and how to write one YAML read as text.
 
-Every check of a number against bounds (pass and method settings, `--width` and friends, material
+Every number that reaches the GPU is first checked by `gpu_number_problem`: finite, and within
+the 32-bit type it becomes (a float32 uniform turns 1e39 into infinity; a 32-bit integer uniform
+or GLSL literal cannot hold 1e11). Every check of a number against bounds (pass and method settings, `--width` and friends, material
 uniform ranges, scene values, primitive parameters) tests `Range.contains` and names the bounds
 with `str(Range)` or `Range.requirement`; each caller words its own sentence around them. YAML 1.1
 reads an exponent without a dot and a sign ('1e30') as a string: `yaml_number_hint` says how to
@@ -50,6 +52,35 @@ class Range:
 
 POSITIVE = Range(0, lo_open=True)
 NON_NEGATIVE = Range(0)
+INT32_MIN, INT32_MAX = -(2**31), 2**31 - 1
+FLOAT32_MAX = 3.4028234663852886e38  # numpy.finfo(numpy.float32).max
+
+
+def show_number(value: float) -> str:
+    """`value` as text, a huge integer by its magnitude (str() refuses ints of more than 4,300 digits)."""
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 10**16:
+        return f"{'-' if value < 0 else ''}1e{int((abs(value).bit_length() - 1) * 0.30103)} (an integer)"
+    return f"{value}"
+
+
+def gpu_number_problem(value: float, integer: bool = False) -> str | None:
+    """Why `value` cannot become a 32-bit GPU number (not finite; beyond int32 or float32), else None."""
+    if integer:
+        if isinstance(value, float) and not math.isfinite(value):
+            return f"must be a finite integer, got {value}"
+        if not INT32_MIN <= value <= INT32_MAX:
+            return f"{show_number(value)} is beyond the 32-bit integer range [{INT32_MIN}, {INT32_MAX}]"
+        return None
+    try:
+        number = float(value)
+    except OverflowError:  # an int past 1.8e308
+        return f"{show_number(value)} is beyond the 32-bit float range (magnitude at most {FLOAT32_MAX:.4g})"
+    else:
+        if not math.isfinite(number):
+            return f"must be a finite number, got {value}"
+    if abs(number) > FLOAT32_MAX:
+        return f"{number:g} is beyond the 32-bit float range (magnitude at most {FLOAT32_MAX:.4g})"
+    return None
 
 
 def yaml_number_hint(value: object) -> str | None:

@@ -62,11 +62,12 @@ def parse_pipeline(doc: Located) -> PipelineConfig:
     if _size(res):
         raise doc.error(("resolution",), _size(res))
     # transparency: method id + generic and method-specific settings
-    tr = dict(data.get("transparency") or {})
-    if not isinstance(data.get("transparency", {}), dict):
-        raise doc.error(("transparency",), "must be a mapping like {method: presort_lf_et}")
+    given_tr = data.get("transparency")
+    if given_tr is not None and not isinstance(given_tr, dict):
+        raise doc.error(("transparency",), f"must be a mapping like {{method: presort_lf_et}}, got {given_tr!r}")
+    tr = dict(given_tr or {})
     mid = tr.pop("method", "presort_lf_et")
-    if mid not in METHODS:
+    if not isinstance(mid, str) or mid not in METHODS:
         raise doc.error(("transparency", "method"), *METHODS.unknown(mid))
     schema = METHODS.get(mid).settings_schema()
     settings = resolve_settings(schema, tr, lambda k, r, h: doc.error(("transparency", k), r, h))
@@ -89,7 +90,7 @@ def parse_pipeline(doc: Located) -> PipelineConfig:
             given = given or {}
         else:
             raise doc.error(("passes", i), "each pass is a name or a one-key mapping {name: {settings}}")
-        if name not in PASSES:
+        if not isinstance(name, str) or name not in PASSES:
             raise doc.error(("passes", i), *PASSES.unknown(name))
         if not isinstance(given, dict):
             raise doc.error(("passes", i, name), "pass settings must be a mapping")
@@ -121,7 +122,10 @@ def parse_pipeline(doc: Located) -> PipelineConfig:
                 "list each pass once; its settings go in that one entry",
             )
     settings["method"] = mid
-    name = str(data.get("name", Path(doc.file).stem))
+    name = data.get("name", Path(doc.file).stem)
+    if isinstance(name, bool) or not isinstance(name, (str, int, float)) or name == "":
+        raise doc.error(("name",), f"'name' must be text, got {name!r}")
+    name = str(name)
     return PipelineConfig(name, (res[0], res[1]), settings, passes, doc.file, aa)
 
 
@@ -129,6 +133,12 @@ def load_pipeline(spec: str | Path | PipelineConfig = "default") -> PipelineConf
     """A PipelineConfig from a built-in name ('default', 'exact'), a YAML path, or itself."""
     if isinstance(spec, PipelineConfig):
         return spec
+    if not isinstance(spec, (str, Path)) or not str(spec):
+        raise ConfigError(
+            f"expected a pipeline name or a path to a .yaml file, got {spec!r}",
+            key="pipeline",
+            hint="one of: default, exact, or a path to a .yaml file",
+        )
     p = Path(spec)
     if not p.suffix and not p.exists():
         p = builtin_pipeline(str(spec))

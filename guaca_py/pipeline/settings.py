@@ -6,7 +6,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from ..numeric import NON_NEGATIVE, POSITIVE, Range, yaml_number_hint
+from ..numeric import NON_NEGATIVE, POSITIVE, Range, gpu_number_problem, yaml_number_hint
 
 
 @dataclass(frozen=True)
@@ -29,6 +29,10 @@ class Setting:
         # number text is refused even where text is accepted: YAML meant a number there
         if not isinstance(value, self.types) or (hint and float in self.types):
             return f"{expected} ({hint})" if hint else expected
+        if numeric and isinstance(value, (int, float)):  # settings become uniforms and GLSL literals
+            problem = gpu_number_problem(value, integer=float not in self.types)
+            if problem:
+                return problem
         if self.choices is not None and value not in self.choices:
             return f"must be one of {', '.join(map(str, self.choices))}, got {value!r}"
         return self.check(value) if self.check else None
