@@ -3,15 +3,18 @@
 from __future__ import annotations
 
 import json
+import math
+import numbers
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import ConfigError
-from ..numeric import Range, number_hint
+from ..numeric import Range, gpu_number_problem, number_hint
 from ..shaders.slots import Texture
-from ..yaml_source import read_text
+from ..yaml_source import MAX_CONFIG_BYTES, MAX_NESTING, read_text
 from . import glsl
 
 #: sampler2D uniforms a material may declare: each takes its own texture unit of Texture.MATERIALS
@@ -22,6 +25,7 @@ UNIFORM_SIZES = {"float": 1, "int": 1, "vec2": 2, "vec3": 3, "vec4": 4, "mat4": 
 STAGES = ("displacement", "visibility")
 _TOP_KEYS = {"name", "description", "uniforms", "displacement", "visibility", "transparent"}
 _SPEC_KEYS = {"type", "default", "range"}
+_METHOD_KEYS = {"name", "source", "file"}
 
 
 @dataclass
@@ -40,7 +44,12 @@ class UniformSpec:
 
 @dataclass
 class Method:
-    """One GLSL method (a `void NAME()` function on the gua_* interface) of a stage."""
+    """One GLSL method (a `void NAME()` function on the gua_* interface) of a stage.
+
+    `source` ends with an `#undef` of every macro the method defines, so its macros cannot reach
+    the shader code after it: the bounds on a material's code (glsl.MAX_TOKENS) then cover every
+    expansion of them.
+    """
 
     name: str
     stage: str
@@ -118,25 +127,45 @@ class MaterialDescription:
         return out
 
 
+def _is_number(v) -> bool:
+    """A real number (Python's or numpy's), not a bool."""
+    return isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
+
+
 def check_value(typ: str, value, file, line, key):
-    """Validate one uniform value against its type; returns the normalized value."""
+    """Validate one uniform value against its type; returns the normalized value.
+
+    Numbers must be finite and fit the 32-bit type the GPU receives (ints in int32, floats
+    within float32's range), so nothing past this point can overflow or turn infinite.
+    """
     size = UNIFORM_SIZES[typ]
     if typ == "sampler2D":
         if not isinstance(value, str) and not hasattr(value, "pixels"):  # path/name or scene.texture.TextureImage
             raise ConfigError(f"sampler2D needs a texture path string, got {value!r}", file, line, key)
         return value
     if typ in ("float", "int"):
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
+        if not _is_number(value):
             raise ConfigError(
                 f"expected {typ}, got {type(value).__name__} {value!r}", file, line, key, number_hint(value)
             )
-        if typ == "int" and not float(value).is_integer():
+        if typ == "int" and not (isinstance(value, numbers.Integral) or float(value).is_integer()):
             raise ConfigError(f"expected int, got {value!r}", file, line, key)
+        problem = gpu_number_problem(value, integer=typ == "int")
+        if problem:
+            raise ConfigError(problem, file, line, key)
         return int(value) if typ == "int" else float(value)
-    arr = np.asarray(value, dtype=object).ravel() if isinstance(value, (list, tuple)) else None
-    if arr is None or arr.size != size or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in arr):
+    items = value.tolist() if isinstance(value, np.ndarray) else value
+    flat: list = []
+    if isinstance(items, (list, tuple)):
+        for v in items:  # a mat4 may be written as 4 rows
+            flat.extend(v if isinstance(v, (list, tuple)) else [v])
+    if len(flat) != size or not all(_is_number(v) for v in flat):
         raise ConfigError(f"expected {typ} ({size} numbers), got {value!r}", file, line, key)
-    return [float(v) for v in arr]
+    for v in flat:
+        problem = gpu_number_problem(v)
+        if problem:
+            raise ConfigError(f"component {problem}", file, line, key)
+    return [float(v) for v in flat]
 
 
 def check_range(spec: UniformSpec, value, file, line, declared_by: str = "the material"):
@@ -160,10 +189,10 @@ def _parse_range(raw, typ: str, path: Path, line: int, uname: str) -> tuple[floa
     if typ == "sampler2D":
         raise ConfigError("a sampler2D uniform has no range", path, line, uname, "leave 'range' out")
     ok = isinstance(raw, list) and len(raw) == 2
-    ok = ok and all(b is None or (isinstance(b, (int, float)) and not isinstance(b, bool)) for b in raw)
+    ok = ok and all(b is None or (_is_number(b) and math.isfinite(b)) for b in raw)
     if not ok or (None not in raw and raw[0] > raw[1]):
         raise ConfigError(
-            f"'range' must be [low, high] with low <= high (null: no bound), got {raw!r}",
+            f"'range' must be [low, high] with low <= high (null: no bound; finite numbers otherwise), got {raw!r}",
             path,
             line,
             uname,
@@ -204,17 +233,27 @@ def _method(entry, stage: str, i: int, path: Path, text: str, search_from: int) 
         raise ConfigError(f"method name {name!r} is not a GLSL identifier", path, None, key)
     pos = text.find(f'"{name}"', search_from)
     pos = pos if pos >= 0 else search_from
+    line = _line_of(text, pos)
+    extra = sorted(set(entry) - _METHOD_KEYS)
+    if extra:
+        raise ConfigError(f"unknown key '{extra[0]}' in method '{name}'", path, line, key, "known: name, source, file")
+    if {"source", "file"} <= set(entry):
+        raise ConfigError("a method takes either 'source' or 'file', not both", path, line, key)
     if "file" in entry:
-        src_path = (path.parent / entry["file"]).resolve()
-        if not src_path.is_file():
-            raise ConfigError(f"method source file not found: {src_path}", path, _line_of(text, pos), key)
-        source, file, first = read_text(src_path, path, _line_of(text, pos), key), src_path, 1
+        given = entry["file"]
+        if not isinstance(given, str) or not given.strip():
+            raise ConfigError(f"'file' must be a path to a .glsl file, got {given!r}", path, line, key)
+        src_path = path.parent / given
+        if "\0" not in given:
+            src_path = src_path.resolve()
+        source = read_text(src_path, path, line, key, max_bytes=glsl.MAX_CODE_BYTES, what="method source file")
+        file, first = src_path, 1
     else:
         src = entry["source"]
         lines_ok = isinstance(src, list) and all(isinstance(x, str) for x in src)
         source = "\n".join(src) if lines_ok else src
         if not isinstance(source, str):
-            raise ConfigError("'source' must be a string or a list of lines", path, _line_of(text, pos), key)
+            raise ConfigError("'source' must be a string or a list of lines", path, line, key)
         spos = text.find('"source"', pos)
         spos = spos if spos >= 0 else pos
         # a list of lines starts on the line after '"source": ['
@@ -228,19 +267,100 @@ def _method(entry, stage: str, i: int, path: Path, text: str, search_from: int) 
             key,
             "each method is a GLSL function named like the method, taking no arguments",
         )
+    macros = glsl.macro_names(glsl.strip_comments(source))
+    if macros:  # an empty line first: a define ending in a backslash would swallow the #undef
+        source += "\n\n" + "\n".join(f"#undef {m}" for m in macros)
     return Method(name, stage, source, file, first), pos + 1
+
+
+def _check_code(methods: list[Method], path: Path) -> None:
+    """Refuse a material whose methods together exceed the bounds on code given to the driver's compiler."""
+    size = statements = tokens = 0
+    for m in methods:
+        where = (m.file, m.first_line, f"{m.stage} method '{m.name}'")
+        size += len(m.source.encode("utf-8"))
+        try:
+            count, expanded = glsl.code_size(m.code)
+        except glsl.CodeBoundError as exc:
+            raise ConfigError(str(exc), *where, "write the code out, or use a plain macro or a function") from None
+        statements, tokens = statements + count, tokens + expanded
+        for total, bound, what in (
+            (size, glsl.MAX_CODE_BYTES, f"{glsl.MAX_CODE_BYTES // 1024} KiB of code"),
+            (statements, glsl.MAX_STATEMENTS, f"{glsl.MAX_STATEMENTS:,} statements"),
+            (tokens, glsl.MAX_TOKENS, f"{glsl.MAX_TOKENS:,} tokens after macro expansion"),
+        ):
+            if total > bound:
+                raise ConfigError(
+                    f"material '{path.name}' holds more than {what} (bounded so the driver's compiler "
+                    "cannot hang or crash)",
+                    *where,
+                    "split the work into fewer, shorter expressions; use loops and functions, not repetition",
+                )
+
+
+class _Duplicate(ValueError):
+    """A key given twice in one JSON object."""
+
+
+class _LongNumber(ValueError):
+    """An integer with more digits than any count or value needs."""
+
+
+def _pairs(pairs: list) -> dict:
+    """A JSON object's dict; a key given twice is refused (json keeps the last one without a word)."""
+    out: dict = {}
+    for k, v in pairs:
+        if k in out:
+            raise _Duplicate(k)
+        out[k] = v
+    return out
+
+
+def _int(text: str) -> int:
+    """A JSON integer; one of more than 64 digits is refused (int() fails at 4,300 with a ValueError)."""
+    if len(text) > 64:
+        raise _LongNumber(text)
+    return int(text)
+
+
+_JSON_NESTING = re.compile(r'"(?:[^"\\]|\\.)*"|[\[\]{}]')
+
+
+def parse_json(text: str, path: Path):
+    """json.loads with a nesting bound checked first (json recurses per level), located errors."""
+    depth = 0
+    for m in _JSON_NESTING.finditer(text):
+        t = m.group()
+        if t in "[{":
+            depth += 1
+            if depth > MAX_NESTING:
+                raise ConfigError(
+                    f"nested deeper than {MAX_NESTING} levels", path, _line_of(text, m.start()), hint="flatten the file"
+                )
+        elif t in "]}":
+            depth -= 1
+    try:
+        return json.loads(text, object_pairs_hook=_pairs, parse_int=_int)
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"invalid JSON: {exc.msg}", path, exc.lineno, hint=f"column {exc.colno}") from None
+    except _Duplicate as exc:
+        k = exc.args[0]
+        hits = [m.start() for m in re.finditer(re.escape(json.dumps(k)) + r"\s*:", text)]
+        line = _line_of(text, hits[1]) if len(hits) > 1 else None
+        raise ConfigError(f"duplicate key '{k}'", path, line, k, "give each key once") from None
+    except _LongNumber as exc:
+        number = exc.args[0]
+        line = _line_of(text, max(text.find(number), 0))
+        raise ConfigError(f"an integer of {len(number)} digits is out of range", path, line) from None
+    except (ValueError, RecursionError) as exc:  # anything else json refuses: still the file's fault
+        raise ConfigError(f"invalid JSON: {exc}", path) from None
 
 
 def load_material(path: str | Path) -> MaterialDescription:
     """Parse a material JSON file; every problem raises ConfigError with file and line."""
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError("material file not found", path)
-    text = read_text(path)
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ConfigError(f"invalid JSON: {exc.msg}", path, exc.lineno, hint=f"column {exc.colno}") from exc
+    text = read_text(path, max_bytes=MAX_CONFIG_BYTES, what="material file")
+    data = parse_json(text, path)
     if not isinstance(data, dict):
         raise ConfigError("a material description is a JSON object", path, 1)
     unknown = set(data) - _TOP_KEYS
@@ -249,13 +369,18 @@ def load_material(path: str | Path) -> MaterialDescription:
         raise ConfigError(
             f"unknown key '{k}'",
             path,
-            _line_of(text, max(text.find(f'"{k}"'), 0)),
+            _line_of(text, max(text.find(json.dumps(k)), 0)),
             k,
             f"known keys: {', '.join(sorted(_TOP_KEYS))}",
         )
     name = data.get("name", path.stem)
     if not isinstance(name, str) or not name:
         raise ConfigError(f"'name' must be a non-empty string, got {name!r}", path, _key_line(text, "name"), "name")
+    doc = data.get("description", "")
+    if not isinstance(doc, str):
+        raise ConfigError(
+            f"'description' must be text, got {doc!r}", path, _key_line(text, "description"), "description"
+        )
     transparent = data.get("transparent")
     if transparent is not None and not isinstance(transparent, bool):
         raise ConfigError(
@@ -276,7 +401,7 @@ def load_material(path: str | Path) -> MaterialDescription:
         )
     uniforms: dict[str, UniformSpec] = {}
     for uname, spec in raw_uniforms.items():
-        line = _line_of(text, max(text.find(f'"{uname}"'), 0))
+        line = _line_of(text, max(text.find(json.dumps(uname)), 0))
         if not glsl.is_identifier(uname) or uname.startswith("gua_"):
             raise ConfigError(
                 f"uniform name {uname!r} is not allowed",
@@ -285,8 +410,11 @@ def load_material(path: str | Path) -> MaterialDescription:
                 uname,
                 "use a GLSL identifier not starting with gua_",
             )
-        if not isinstance(spec, dict) or spec.get("type") not in UNIFORM_SIZES:
-            raise ConfigError(f"uniform needs a 'type' out of {', '.join(UNIFORM_SIZES)}", path, line, uname)
+        typ = spec.get("type") if isinstance(spec, dict) else None
+        if not isinstance(typ, str) or typ not in UNIFORM_SIZES:
+            raise ConfigError(
+                f"uniform needs a 'type' out of {', '.join(UNIFORM_SIZES)}, got {typ!r}", path, line, uname
+            )
         extra = sorted(set(spec) - _SPEC_KEYS)
         if extra:  # a misspelt "default" would otherwise leave the uniform at zero without a word
             raise ConfigError(
@@ -294,15 +422,13 @@ def load_material(path: str | Path) -> MaterialDescription:
             )
         default = spec.get(
             "default",
-            "white"
-            if spec["type"] == "sampler2D"
-            else (0.0 if UNIFORM_SIZES[spec["type"]] == 1 else [0.0] * UNIFORM_SIZES[spec["type"]]),
+            "white" if typ == "sampler2D" else (0.0 if UNIFORM_SIZES[typ] == 1 else [0.0] * UNIFORM_SIZES[typ]),
         )
-        bounds = _parse_range(spec["range"], spec["type"], path, line, uname) if "range" in spec else None
-        u = UniformSpec(uname, spec["type"], check_value(spec["type"], default, path, line, uname), bounds)
+        bounds = _parse_range(spec["range"], typ, path, line, uname) if "range" in spec else None
+        u = UniformSpec(uname, typ, check_value(typ, default, path, line, uname), bounds)
         uniforms[uname] = u
         check_range(u, u.default, path, line, "its 'range'")  # the default too
-        if spec["type"] == "sampler2D" and sum(u.type == "sampler2D" for u in uniforms.values()) > MAX_SAMPLERS:
+        if typ == "sampler2D" and sum(u.type == "sampler2D" for u in uniforms.values()) > MAX_SAMPLERS:
             raise ConfigError(
                 f"more than {MAX_SAMPLERS} sampler2D uniforms",
                 path,
@@ -317,11 +443,12 @@ def load_material(path: str | Path) -> MaterialDescription:
     for stage in STAGES:
         entries = data.get(stage) or []
         if not isinstance(entries, list):
-            raise ConfigError(f"'{stage}' must be a list of methods", path, None, stage)
+            raise ConfigError(f"'{stage}' must be a list of methods", path, _key_line(text, stage), stage)
         stage_pos = text.find(f'"{stage}"')
         pos = stage_pos if stage_pos >= 0 else pos
         methods[stage] = []
         for i, entry in enumerate(entries):
             m, pos = _method(entry, stage, i, path, text, pos)
             methods[stage].append(m)
-    return MaterialDescription(name, uniforms, methods, path, data.get("description", ""), transparent)
+    _check_code(methods["displacement"] + methods["visibility"], path)
+    return MaterialDescription(name, uniforms, methods, path, doc, transparent)

@@ -2,19 +2,24 @@
 
 from __future__ import annotations
 
-import json
+import os
 from pathlib import Path
 
 from ..errors import ConfigError
 from ..resources import builtin_dir
-from .description import MaterialDescription, load_material
+from ..yaml_source import MAX_CONFIG_BYTES, read_text
+from .description import MaterialDescription, load_material, parse_json
 
 
 def _declared_name(path: Path) -> str:
-    """The file's "name" (what scenes look it up by), or its stem when it has none or cannot be read yet."""
+    """The file's "name" (what scenes look it up by), or its stem when it has none or cannot be read yet.
+
+    Read as load_material reads it (regular files only, bounded size and nesting), so a FIFO or a
+    bomb among the .json files cannot stall or crash listing the others.
+    """
     try:
-        data = json.loads(path.read_bytes().decode("utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError):
+        data = parse_json(read_text(path, max_bytes=MAX_CONFIG_BYTES, what="material file"), path)
+    except ConfigError:
         return path.stem  # load_material reports what is wrong when the material is used
     name = data.get("name") if isinstance(data, dict) else None
     return name if isinstance(name, str) and name else path.stem
@@ -34,6 +39,15 @@ class MaterialRegistry:
                 raise ConfigError(
                     "material directory not found", d, key="material_paths", hint="give an existing directory"
                 )
+            try:  # glob() would silently find nothing in a folder it may not list
+                os.listdir(d)
+            except OSError as exc:
+                raise ConfigError(
+                    f"cannot list material directory: {exc.strerror or exc}",
+                    d,
+                    key="material_paths",
+                    hint="check the folder's permissions",
+                ) from None
         self.search_paths = user + [builtin_dir("materials")]
         self._user_count = len(user)
         self._cache: dict[str, MaterialDescription] = {}
@@ -75,7 +89,7 @@ class MaterialRegistry:
         if name in self._cache:
             return self._cache[name]
         if name.endswith(".json"):
-            path = Path(name) if Path(name).is_file() else None
+            path = Path(name) if Path(name).exists() else None  # load_material refuses what is no regular file
         else:
             if self._index is None:
                 self._index = self._build_index()
