@@ -40,3 +40,28 @@ def test_setting_refuses_number_text_even_where_text_is_accepted():
     assert Setting(NUMBER, 1.0).validate("2e1").startswith("expected int/float, got '2e1' (YAML reads")
     assert Setting((str,), "x").validate("1e3") is None  # a text setting keeps text that looks like a number
     assert Setting(NUMBER, 1.0).validate(True) == "expected int/float, got True"
+
+
+def test_gpu_numbers_finite_and_within_32_bits():
+    from guaca_py.numeric import gpu_number_problem
+
+    assert gpu_number_problem(2**31 - 1, integer=True) is None and gpu_number_problem(-(2**31), integer=True) is None
+    assert "beyond the 32-bit integer range" in gpu_number_problem(2**31, integer=True)
+    assert gpu_number_problem(10**5000, integer=True).startswith("1e4999 (an integer) is beyond")  # no str() of it
+    assert gpu_number_problem(math.inf, integer=True) == "must be a finite integer, got inf"
+    assert gpu_number_problem(3.4e38) is None and "beyond the 32-bit float range" in gpu_number_problem(3.5e38)
+    assert gpu_number_problem(math.nan) == "must be a finite number, got nan"
+    assert "beyond the 32-bit float range" in gpu_number_problem(-(10**400))  # float() of it overflows
+
+
+def test_settings_take_numpy_numbers_and_refuse_what_the_gpu_cannot_hold():
+    import numpy as np
+
+    from guaca_py.pipeline.settings import resolve_settings
+
+    schema = {"n": Setting((int,), 1, check=positive), "x": Setting(NUMBER, 1.0)}
+    out = resolve_settings(schema, {"n": np.int64(4), "x": np.float32(0.5)}, lambda k, r, h: ValueError(k, r))
+    assert out == {"n": 4, "x": 0.5} and type(out["n"]) is int
+    assert Setting((int,), 1).validate(10**11).endswith("beyond the 32-bit integer range [-2147483648, 2147483647]")
+    assert Setting(NUMBER, 1.0).validate(math.inf) == "must be a finite number, got inf"
+    assert Setting(NUMBER, 1.0).validate(10**11) is None  # a number setting may be a large int

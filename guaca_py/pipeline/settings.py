@@ -6,6 +6,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from ..numeric import NON_NEGATIVE, POSITIVE, Range, gpu_number_problem, yaml_number_hint
 
 
@@ -70,6 +72,8 @@ def resolve_settings(schema: dict[str, Setting], given: dict, error) -> dict:
     """Defaults + given values; `error(key, reason, hint)` builds the exception for bad input."""
     out = {k: s.default for k, s in schema.items()}
     for key, value in (given or {}).items():
+        if isinstance(value, np.generic):  # numpy's numbers from an embedding application: Python's
+            value = value.item()
         if key not in schema:
             raise error(key, f"unknown setting '{key}'", f"known: {', '.join(schema) or 'none'}")
         reason = schema[key].validate(value)
