@@ -12,6 +12,7 @@ write it, wherever such text reaches a number.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 
 PLAIN_NUMBER_HINT = "write a plain number like 1.5"
@@ -83,6 +84,11 @@ def gpu_number_problem(value: float, integer: bool = False) -> str | None:
     return None
 
 
+_YAML_NUMBER = re.compile(  # what YAML 1.1 reads as a number when it is written without quotes
+    r"^[-+]?(?:[0-9][0-9_]*\.[0-9_]*(?:[eE][-+][0-9]+)?|\.[0-9_]+(?:[eE][-+][0-9]+)?|0|[1-9][0-9_]*)$"
+)
+
+
 def yaml_number_hint(value: object) -> str | None:
     """How to write `value` as a number when it is text that reads as a finite number ('1e30'), else None."""
     if not isinstance(value, str):
@@ -93,6 +99,10 @@ def yaml_number_hint(value: object) -> str | None:
         return None
     if not math.isfinite(number):  # 'nan', 'inf' and '1e999' are no exponent mistake
         return None
+    if _YAML_NUMBER.match(value):  # a number YAML would read: the quotes made it text
+        return f"{value!r} is quoted, so it is text: write it without quotes"
+    if "e" not in value.lower():
+        return f"write a plain number like {number:g}"
     return f"YAML reads {value!r} as text: write it with a dot and a signed exponent, e.g. {number:.1e}"
 
 

@@ -8,6 +8,13 @@ import pytest
 from guaca_py.scene.graph import Camera, MaterialInstance, MeshData, Node, Scene, Transform
 
 
+def pytest_addoption(parser):
+    """Options of tests/test_fuzz.py: how many examples each fuzzed format gets, and from which seed."""
+    group = parser.getgroup("fuzz", "fuzzing the file formats (tests/test_fuzz.py)")
+    group.addoption("--fuzz-examples", type=int, default=40, help="examples per fuzzed format (CI: 40)")
+    group.addoption("--fuzz-seed", type=int, default=None, help="random seed (default: a fixed sequence)")
+
+
 @pytest.fixture(scope="session")
 def gl_context():
     """One standalone EGL context shared by all tests (contexts are slow to create on llvmpipe)."""
