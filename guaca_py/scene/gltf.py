@@ -37,21 +37,6 @@ from .texture import TextureImage
 GLTF_SUFFIXES = (".glb", ".gltf")
 
 
-class MatrixTransform(Transform):
-    """A node transform given as a full 4x4 local matrix (glTF nodes may carry any affine matrix)."""
-
-    def __init__(self, matrix: np.ndarray):
-        super().__init__()
-        self._matrix = np.asarray(matrix, dtype=np.float64).reshape(4, 4)
-
-    def matrix(self) -> np.ndarray:
-        """The stored local-to-parent matrix."""
-        return self._matrix.copy()
-
-    def __repr__(self) -> str:
-        return f"MatrixTransform({self._matrix.tolist()})"
-
-
 @dataclass
 class GltfContent:
     """What a glTF file holds: root nodes (with children), its first camera if any."""
@@ -196,7 +181,7 @@ def load_gltf(
 
     def build(name: str) -> Node | None:
         data = edge.get(name, {})
-        node = Node(name=name, transform=MatrixTransform(data.get("matrix", np.eye(4))))
+        node = Node(name=name, transform=Transform(matrix=data.get("matrix", np.eye(4))))
         geom_name = data.get("geometry")
         geom = scene.geometry.get(geom_name) if geom_name is not None else None
         if isinstance(geom, trimesh.Trimesh) and len(geom.faces):

@@ -7,38 +7,88 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from pyglm import glm
+
+_AXES = (glm.dvec3(1.0, 0.0, 0.0), glm.dvec3(0.0, 1.0, 0.0), glm.dvec3(0.0, 0.0, 1.0))
 
 
-def _rot_x(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]], dtype=np.float64)
+def _checked_matrix(matrix) -> np.ndarray:
+    """A 4x4 float64 copy of `matrix` (anything numpy reads: nested lists, arrays, PyGLM matrices)."""
+    m = np.array(matrix, dtype=np.float64)
+    if m.shape == (16,):
+        m = m.reshape(4, 4)
+    if m.shape != (4, 4):
+        raise ValueError(f"a transform matrix is 4x4, got shape {m.shape}")
+    if not np.all(np.isfinite(m)):
+        raise ValueError("a transform matrix must be finite (no NaN or inf)")
+    return m
 
 
-def _rot_y(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]], dtype=np.float64)
-
-
-def _rot_z(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]], dtype=np.float64)
-
-
-@dataclass
 class Transform:
-    """Translation, Euler rotation in degrees (applied X, then Y, then Z) and scale."""
+    """A node's local-to-parent transform: translation, Euler rotation in degrees (applied X, then Y,
+    then Z) and scale; or any 4x4 matrix (`Transform(matrix=m)`, `Transform.from_matrix(m)`).
 
-    translation: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    rotation_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    A matrix, when given, is the transform: translation, rotation_deg and scale are then unused.
+    Matrices are row-major numpy arrays acting on column vectors (the translation is column 3).
+    """
+
+    def __init__(
+        self,
+        translation: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        rotation_deg: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        scale: tuple[float, float, float] = (1.0, 1.0, 1.0),
+        *,
+        matrix=None,
+    ):
+        self.translation, self.rotation_deg, self.scale = translation, rotation_deg, scale
+        self._matrix = None if matrix is None else _checked_matrix(matrix)
+        self._glm = None if self._matrix is None else glm.dmat4(self._matrix)
+
+    @classmethod
+    def from_matrix(cls, matrix) -> Transform:
+        """A transform given as a 4x4 local-to-parent matrix (e.g. a glTF or trimesh node's)."""
+        return cls(matrix=matrix)
+
+    @property
+    def has_matrix(self) -> bool:
+        """True when the transform was given as a matrix rather than translation, rotation and scale."""
+        return self._matrix is not None
+
+    def glm_matrix(self) -> glm.dmat4:
+        """Local-to-parent matrix as a PyGLM dmat4: T * Rz * Ry * Rx * S, or the given matrix."""
+        if self._glm is not None:
+            return self._glm
+        rx, ry, rz = (math.radians(v) for v in self.rotation_deg)
+        m = glm.translate(glm.dvec3(*self.translation))
+        m = glm.rotate(m, rz, _AXES[2])
+        m = glm.rotate(m, ry, _AXES[1])
+        m = glm.rotate(m, rx, _AXES[0])
+        return glm.scale(m, glm.dvec3(*self.scale))
 
     def matrix(self) -> np.ndarray:
-        """Local-to-parent 4x4 float64 matrix: T * Rz * Ry * Rx * S (column vectors)."""
-        rx, ry, rz = (math.radians(v) for v in self.rotation_deg)
-        m = np.eye(4)
-        m[:3, :3] = _rot_z(rz) @ _rot_y(ry) @ _rot_x(rx) @ np.diag(np.asarray(self.scale, dtype=np.float64))
-        m[:3, 3] = self.translation
-        return m
+        """Local-to-parent 4x4 float64 matrix: T * Rz * Ry * Rx * S (column vectors), or the given matrix."""
+        return self._matrix.copy() if self._matrix is not None else np.array(self.glm_matrix())
+
+    def key(self) -> tuple:
+        """Hashable key of the transform's values (caches compare values, never object identity)."""
+        if self._matrix is not None:
+            return ("matrix", self._matrix.tobytes())
+        return (_freeze(self.translation), _freeze(self.rotation_deg), _freeze(self.scale))
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, Transform) and self.key() == other.key()
+
+    __hash__ = None  # mutable, like the dataclass it replaced
+
+    def __repr__(self) -> str:
+        if self._matrix is not None:
+            return f"Transform(matrix={self._matrix.tolist()})"
+        return f"Transform(translation={self.translation}, rotation_deg={self.rotation_deg}, scale={self.scale})"
+
+
+def _freeze(v) -> tuple:
+    """A 3-vector as a hashable tuple (tuples as they are: the common case, once a node a frame)."""
+    return v if type(v) is tuple else tuple(float(x) for x in v)
 
 
 @dataclass
@@ -81,10 +131,16 @@ class Node:
 
     def walk(self, parent: np.ndarray | None = None):
         """Yield (node, world matrix) for this node and all descendants, depth first, in order."""
-        world = (parent if parent is not None else np.eye(4)) @ self.transform.matrix()
+        for node, world in self._walk(None if parent is None else glm.dmat4(np.asarray(parent, dtype=np.float64))):
+            yield node, np.array(world)
+
+    def _walk(self, parent: glm.dmat4 | None):
+        """(node, PyGLM world matrix) pairs: the products stay in PyGLM, numpy only at the boundary."""
+        local = self.transform.glm_matrix()
+        world = local if parent is None else parent * local
         yield self, world
         for child in self.children:
-            yield from child.walk(world)
+            yield from child._walk(world)
 
 
 @dataclass
@@ -100,34 +156,14 @@ class Camera:
 
     def view_matrix(self) -> np.ndarray:
         """World-to-view 4x4 float64 matrix (camera looks down -Z)."""
-        # plain float arithmetic: numpy's cross and norm on 3-vectors cost ~200 Python calls a frame
-        ex, ey, ez = (float(v) for v in self.position)
-        fx, fy, fz = (float(t) - e for t, e in zip(self.target, (ex, ey, ez)))
-        n = math.sqrt(fx * fx + fy * fy + fz * fz)
-        fx, fy, fz = fx / n, fy / n, fz / n
-        ux, uy, uz = (float(v) for v in self.up)
-        sx, sy, sz = fy * uz - fz * uy, fz * ux - fx * uz, fx * uy - fy * ux
-        n = math.sqrt(sx * sx + sy * sy + sz * sz)
-        sx, sy, sz = sx / n, sy / n, sz / n
-        ux, uy, uz = sy * fz - sz * fy, sz * fx - sx * fz, sx * fy - sy * fx
-        return np.array(
-            [
-                [sx, sy, sz, -(sx * ex + sy * ey + sz * ez)],
-                [ux, uy, uz, -(ux * ex + uy * ey + uz * ez)],
-                [-fx, -fy, -fz, fx * ex + fy * ey + fz * ez],
-                [0.0, 0.0, 0.0, 1.0],
-            ]
-        )
+        eye, target, up = (glm.dvec3(*v) for v in (self.position, self.target, self.up))
+        return np.array(glm.lookAtRH(eye, target, up))
 
     def projection_matrix(self, aspect: float) -> np.ndarray:
-        """OpenGL perspective 4x4 float64 matrix (clip z in [-w, w])."""
-        t = 1.0 / math.tan(math.radians(self.fov_y) / 2.0)
-        n, f = self.near, self.far
-        m = np.zeros((4, 4))
-        m[0, 0], m[1, 1] = t / aspect, t
-        m[2, 2], m[2, 3] = (f + n) / (n - f), 2 * f * n / (n - f)
-        m[3, 2] = -1.0
-        return m
+        """OpenGL perspective 4x4 matrix (clip z in [-w, w]) as float64; its values are float32, what GL receives."""
+        # PyGLM builds projections in single precision only; the GPU reads them so anyway
+        m = glm.perspectiveRH_NO(math.radians(self.fov_y), float(aspect), float(self.near), float(self.far))
+        return np.array(m, dtype=np.float64)
 
 
 LIGHT_TYPES = ("point", "spot", "directional")

@@ -9,7 +9,7 @@ from guaca_py.cli import main
 from guaca_py.reference import compare, quad_mesh, reference_of, unlit
 from guaca_py.scene.files import load_any
 from guaca_py.scene.gltf import load_gltf
-from guaca_py.scene.graph import Node, Scene
+from guaca_py.scene.graph import Node, Scene, Transform
 from guaca_py.scene.loader import load_scene_text
 
 SIZE = 64
@@ -126,15 +126,13 @@ def _reference_scene(content) -> Scene:
             color = [c * GREY_LINEAR for c in color]  # emissive factor times the sRGB-decoded texture
         if name == "hidden":
             continue  # back-facing and single-sided: culled
-        from guaca_py.scene.gltf import MatrixTransform
-
         mesh, alpha = node.mesh, 1.0
         if name == "mask":  # only the texture's right half (alpha above the cutoff) remains, opaque
             mesh = quad_mesh(0.3, 0.6)
             world = world @ np.array([[1, 0, 0, 0.3], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
         if name == "blend":
             alpha = u["base_color"][3]
-        nodes.append(Node(name, MatrixTransform(world), mesh, unlit(color, alpha)))
+        nodes.append(Node(name, Transform(matrix=world), mesh, unlit(color, alpha)))
     return Scene(camera=content.camera, background=(0.1, 0.1, 0.1), nodes=nodes)
 
 
