@@ -166,7 +166,7 @@ class Camera:
         return np.array(m, dtype=np.float64)
 
 
-LIGHT_TYPES = ("point", "spot", "directional")
+LIGHT_TYPES = ("point", "spot", "directional", "ambient")
 #: farthest a scene's coordinates may reach from the origin: float32 positions step by 1 at 1.7e7,
 #: and llvmpipe's clipper drops triangles past ~1e8 (the loader checks scales, the draw list extents)
 MAX_WORLD = 1.0e7
@@ -174,11 +174,13 @@ MAX_WORLD = 1.0e7
 
 @dataclass
 class Light:
-    """A point, spot or directional light. Color is linear RGB; intensity scales it.
+    """A point, spot, directional or ambient light. Color is linear RGB; intensity scales it.
 
     Point/spot lights have a finite range `radius` with a smooth falloff to zero there;
     spot lights use `direction` and inner/outer cone half-angles in degrees; directional
-    lights use `direction` (the direction light travels) and ignore position and radius.
+    lights use `direction` (the direction light travels) and ignore position and radius;
+    an ambient light is light arriving equally from every direction (a surface reflects
+    color * intensity * its albedo) and uses neither position, direction nor radius.
     """
 
     type: str = "point"

@@ -18,6 +18,7 @@ A scene file is a YAML mapping with four optional top-level keys::
       - {type: spot, position: [0, 4, 0], direction: [0, -1, 0], color: [1, 0.9, 0.8],
          intensity: 30, radius: 12, inner_angle_deg: 15, outer_angle_deg: 25}
       - {type: directional, direction: [-1, -1, -0.5], color: [0.4, 0.4, 0.5], intensity: 1}
+      - {type: ambient, color: [0.2, 0.2, 0.25], intensity: 1}
     nodes:
       - name: pane
         mesh: {primitive: quad, size: [2, 2]}       # or {file: models/bunny.obj}
@@ -26,7 +27,8 @@ A scene file is a YAML mapping with four optional top-level keys::
         children: []                                # nodes, same format, relative to this one
 
 Lights
-    ``type`` is ``point`` (the default), ``spot`` or ``directional``. Every light takes
+    ``type`` is ``point`` (the default), ``spot``, ``directional`` or ``ambient`` (light from
+    every direction: a surface reflects color * intensity * its albedo). Every light takes
     ``color`` (RGB, >= 0, default [1, 1, 1]) and ``intensity`` (>= 0, default 1). Point and
     spot lights take ``position`` and ``radius`` (range, > 0, default 10); spot and
     directional lights take ``direction`` (where the light travels; normalised on load);
@@ -86,6 +88,7 @@ LIGHT_KEYS = {
     "point": ("type", "position", "color", "intensity", "radius"),
     "spot": ("type", "position", "direction", "color", "intensity", "radius", "inner_angle_deg", "outer_angle_deg"),
     "directional": ("type", "direction", "color", "intensity"),
+    "ambient": ("type", "color", "intensity"),
 }
 TEXTURE_SUFFIXES = (".png", ".jpg", ".jpeg")
 MAX_SCENE_DEPTH = 100  # levels of children; the loader, the graph walk and the draw list recurse per level
