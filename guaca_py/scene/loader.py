@@ -1,4 +1,7 @@
-"""Scene files: YAML text to a Scene, where every error names file, line and key.
+"""Scene files: YAML text to a Scene, where every error names file, line and key; `load` for any file.
+
+`load(path)` (`guaca_py.load`) reads scene YAML here and hands glTF and mesh files to
+scene/files.py; `load_scene` is the same function under its older name.
 
 Scene file format
 -----------------
@@ -501,14 +504,26 @@ def load_scene_text(text: str, source_name: str = "<string>", base_dir: str | Pa
     return _Reader(source_name, base.resolve()).scene(root)
 
 
-def load_scene(path: str | Path) -> Scene:
-    """Load a scene file; relative paths inside it resolve against its directory."""
+def load(path: str | Path) -> Scene:
+    """Scene YAML, a glTF file (.gltf/.glb) or a mesh file (OBJ/MTL, PLY, STL, ...) as a Scene.
+
+    Scene files: relative paths inside them resolve against their directory. Model files are
+    read by scene/files.py: their own camera (or one framing the model) and the default lights.
+    """
+    from .files import load_model, model_kind
+
     p = Path(path)
     if not p.is_file():
         raise ConfigError(f"scene file not found: {p}", p, hint="check the path")
+    if model_kind(p) != "yaml":
+        return load_model(p)
     scene = load_scene_text(read_text(p), str(p), p.parent)
     scene.source = p.resolve()
     return scene
+
+
+#: the scene-file reader's first name: the same function, so a .glb given to it is read as glTF
+load_scene = load
 
 
 def demo_scene() -> Scene:
