@@ -39,11 +39,10 @@ def _options_over_pipeline(args):
 
 def _cmd_render(args) -> int:
     from .renderer import Renderer
-    from .scene.files import load_any
-    from .scene.loader import demo_scene
+    from .scene.loader import demo_scene, load
 
     check_render_args(args)
-    scene = load_any(args.scene) if args.scene else demo_scene()  # YAML, glTF or a mesh file
+    scene = load(args.scene) if args.scene else demo_scene()  # YAML, glTF or a mesh file
     pipeline, overrides = _options_over_pipeline(args)
     renderer = Renderer(pipeline, method=args.method, method_overrides=overrides, material_paths=args.materials)
     if args.frames > 1 or args.warmup:
@@ -96,12 +95,11 @@ def _cmd_render(args) -> int:
 
 
 def _cmd_view(args) -> int:
-    from .scene.files import load_any
-    from .scene.loader import demo_scene
+    from .scene.loader import demo_scene, load
     from .viewer.window import run_viewer
 
     check_method_option(args.method)
-    scene = load_any(args.scene) if args.scene else demo_scene()
+    scene = load(args.scene) if args.scene else demo_scene()
     viewer = run_viewer(
         scene,
         width=args.width,
