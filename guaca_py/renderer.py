@@ -27,6 +27,7 @@ from .pipeline.retry import settle
 from .pipeline.settings import resolve_settings
 from .present import Presenter
 from .raster.router import RasterRouter
+from .scene.files import as_scene
 from .scene.graph import Scene
 from .shaders import ShaderLibrary
 
@@ -226,6 +227,7 @@ class Renderer:
         on a GPU, the per-pass times are the previous frame's (`stats["passes_of"]`), so reading
         them never waits for this frame.
         """
+        scene = as_scene(scene)  # a trimesh scene or mesh converts (once per content); anything else is named
         w, h = check_resolution(
             self.caps.limits,
             self.config.resolution[0] if width is None else width,
