@@ -25,7 +25,7 @@ from .pipeline.drawlist import build_draw_list
 from .pipeline.frame import FrameContext, FrameResult
 from .pipeline.retry import settle
 from .pipeline.settings import resolve_settings
-from .present import Presenter
+from .present import Presenter, host_target
 from .raster.router import RasterRouter
 from .scene.graph import Scene
 from .shaders import ShaderLibrary
@@ -212,6 +212,7 @@ class Renderer:
         *,
         target=None,
         viewport: tuple[int, int, int, int] | None = None,
+        over_target: bool = False,
         read_back: bool = True,
         stats: bool = True,
     ) -> FrameResult:
@@ -219,6 +220,12 @@ class Renderer:
 
         `target` is a moderngl Framebuffer (e.g. the host's screen) or Texture the frame is
         drawn into (scaled to `viewport`, default the whole target) without leaving the GPU.
+        `over_target=True` composes the frame with what the target already holds (a Framebuffer
+        with a colour and a depth attachment, the frame's size or a `viewport` of it): its depth,
+        made with this scene camera's matrices (`camera_matrices`), hides guaca's fragments behind
+        it; its colour is the background (the scene's is not drawn) and stays where nothing of
+        guaca covers it; guaca's opaque depth is written back into its depth attachment.
+        `FrameResult.image` is then guaca's layer alone (premultiplied, black where it is empty).
         With `read_back=False` nothing is copied to the CPU: `FrameResult.texture` holds the
         frame until the next render and `FrameResult.image` reads it on first access.
         `stats=False` skips per-pass timing (no timer queries or GPU syncs); the counters the
@@ -231,15 +238,16 @@ class Renderer:
             self.config.resolution[0] if width is None else width,
             self.config.resolution[1] if height is None else height,
         )
-        cam = scene.camera
+        host = host_target(target, w, h, viewport) if over_target else None  # refused before any work
         draws = build_draw_list(scene, self.materials, self.draw_cache)
         frame = FrameContext(
-            self.device, self.method, self.raster, scene, w, h, draws, cam.view_matrix(), cam.projection_matrix(w / h)
+            self.device, self.method, self.raster, scene, w, h, draws, *self.camera_matrices(scene, w, h)
         )
         frame.late_counters = not read_back
         frame.resources.enter(None)
         frame.resources["draw_list"] = draws
         frame.resources["lights"] = list(scene.lights)
+        frame.resources["host_layer"] = self.presenter.read_host_layer(host) if host is not None else None
         frame.stats.update(
             {
                 "method": self.method.id,
@@ -309,11 +317,25 @@ class Renderer:
         self.frame_serial += 1
         tex = frame.resources.output
         if target is not None:
-            self.presenter.draw(tex, target, viewport)
+            self.presenter.draw(tex, target, viewport, over=host is not None)
+        if host is not None:  # the host keeps drawing with guaca's opaque surfaces in its depth
+            self.presenter.write_host_depth(host, frame.resources["gbuffer"])
         result = FrameResult(None, dict(frame.stats), texture=tex, reader=self._reader(tex, self.frame_serial))
         if read_back:
             result.read()
         return result
+
+    @staticmethod
+    def camera_matrices(scene: Scene, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
+        """(view, projection) of the frame: 4x4 float64, row-major, for column vectors (clip = P @ V @ world).
+
+        OpenGL conventions: the camera looks down -Z, clip z in [-w, w], so with the default depth
+        range and clip control the depth buffer holds [0, 1]. A host drawing the opaque layer for
+        `render(..., over_target=True)` uses exactly these; a GLSL mat4 takes
+        `m.T.astype("f4").tobytes()` (GLSL matrices are column-major).
+        """
+        cam = scene.camera
+        return cam.view_matrix(), cam.projection_matrix(width / height)
 
     def _reader(self, tex, serial: int):
         """A function reading `tex` (the frame numbered `serial`) back as (image, linear or None)."""
@@ -339,6 +361,7 @@ class Renderer:
     def _release_gpu(self) -> None:
         for p in self.passes:
             p.release()
+        self.presenter.release()
         self.method.release()
         self.raster.release()
         for q in self._queries.values():
