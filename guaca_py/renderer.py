@@ -16,7 +16,7 @@ from .gpu_timer import TimerQuery
 from .host_state import ContextGuard, native, on_context
 from .limits import check_resolution
 from .materials import MaterialRegistry
-from .methods import method_class, require_method_id
+from .methods import auto, method_class, require_method_id
 from .pipeline.assemble import assemble
 from .pipeline.config import PipelineConfig, load_pipeline
 from .pipeline.device import Antialiasing, Device
@@ -43,7 +43,7 @@ def method_settings(
     A bad override is reported under `overrides_source` (the argument or command-line option it
     came from), not under the pipeline file, which may hold no such value.
     """
-    schema = method_class(mid).settings_schema()
+    schema = auto.settings_schema() if mid == auto.AUTO else method_class(mid).settings_schema()
 
     def error(where):
         return lambda k, r, h: ConfigError(r, where, None, f"transparency.{k}", h)
@@ -158,8 +158,18 @@ class Renderer:
 
     @on_context
     def set_method(self, mid: str, overrides: dict | None = None) -> None:
-        """Switch the transparency method (settings shared with the config carry over)."""
+        """Switch the transparency method (settings shared with the config carry over).
+
+        `auto` picks the fastest exact method measured on this kind of device (methods/auto.py);
+        `method_auto` says which and why, and the frame stats repeat it.
+        """
         require_method_id(mid, "method")  # a pipeline file's method was checked with its line when read
+        self.method_auto = None
+        if mid == auto.AUTO:
+            method_settings(mid, {}, overrides)  # checked as settings of any method auto may pick
+            mid, self.method_auto = auto.choose(self.caps, self.samples)
+            taken = method_class(mid).settings_schema()
+            overrides = {k: v for k, v in (overrides or {}).items() if k in taken}
         cls = method_class(mid)
         reason = cls.unsupported_reason(self.caps)
         if reason:
@@ -260,6 +270,8 @@ class Renderer:
                 "regrown": 0,
             }
         )
+        if self.method_auto is not None:
+            frame.stats["method_auto"] = self.method_auto
         t0 = time.perf_counter()
         timers = {}
         kind = "off"
