@@ -257,3 +257,20 @@ def test_targets_that_cannot_hold_the_host_layer_are_refused(host_ctx):
     with host_ctx:
         for o in (no_depth, no_colour, small, *small.color_attachments, small.depth_attachment, colour, depth):
             o.release()
+
+
+@pytest.mark.parametrize(
+    "method,overrides",
+    [("post_sort", {}), ("dfb", {}), ("depth_peeling", {}), ("presort_lf_et", {"raster": "compute"})],
+)
+def test_every_method_family_culls_behind_the_host_depth(host_ctx, method, overrides):
+    """A-buffer, counted storage, peeling (drawn in the composite) and the compute rasterizer read the host's depth."""
+    scene = _scene()
+    host = HostFrame(host_ctx, "texture")
+    host.draw(scene)
+    r = Renderer("exact", ctx=host_ctx, method=method, method_overrides=overrides or None)
+    r.render(scene, W, H, target=host.fbo, over_target=True)
+    err = np.abs(host.colour().astype(np.float64) - _reference(scene) * 255.0).max()
+    assert err <= 3.0, err
+    r.release()
+    host.release()
