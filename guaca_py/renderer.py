@@ -56,6 +56,16 @@ def method_settings(
     return out
 
 
+def _image_and_linear(data: bytes, linear: bool, size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray | None]:
+    """RGBA pixels read from GL (row 0 at the bottom) as (uint8 image, float32 linear colour or None), row 0 at the top."""
+    w, h = size
+    if linear:
+        lin = np.frombuffer(data, dtype=np.float32).reshape(h, w, 4)[::-1, :, :3]
+        img = np.clip(np.rint(np.clip(lin, 0.0, 1.0) * 255.0), 0, 255).astype(np.uint8)
+        return np.ascontiguousarray(img), np.ascontiguousarray(lin)
+    return np.ascontiguousarray(np.frombuffer(data, dtype=np.uint8).reshape(h, w, 4)[::-1, :, :3]), None
+
+
 class Renderer:
     """Renders Scenes through a pipeline config. Reuse one Renderer across frames.
 
@@ -235,7 +245,9 @@ class Renderer:
         made with this scene camera's matrices (`camera_matrices`), hides guaca's fragments behind
         it; its colour is the background (the scene's is not drawn) and stays where nothing of
         guaca covers it; guaca's opaque depth is written back into its depth attachment.
-        `FrameResult.image` is then guaca's layer alone (premultiplied, black where it is empty).
+        `FrameResult.image` is then the composed picture, read from the target's rectangle
+        (with `read_back=False`: as the target holds it when read); `FrameResult.texture` is
+        guaca's layer alone (premultiplied colour and coverage).
         With `read_back=False` nothing is copied to the CPU: `FrameResult.texture` holds the
         frame until the next render and `FrameResult.image` reads it on first access.
         `stats=False` skips per-pass timing (no timer queries or GPU syncs); the counters the
@@ -332,7 +344,8 @@ class Renderer:
             self.presenter.draw(tex, target, viewport, over=host is not None)
         if host is not None:  # the host keeps drawing with guaca's opaque surfaces in its depth
             self.presenter.write_host_depth(host, frame.resources["gbuffer"])
-        result = FrameResult(None, dict(frame.stats), texture=tex, reader=self._reader(tex, self.frame_serial))
+        reader = self._reader(tex, self.frame_serial) if host is None else self._target_reader(host)
+        result = FrameResult(None, dict(frame.stats), texture=tex, reader=reader)
         if read_back:
             result.read()
         return result
@@ -359,13 +372,18 @@ class Renderer:
                     "this frame's texture was reused by a later render (or the renderer was released); "
                     "read frame.image before the next render, or render with read_back=True"
                 )
-            h, w = tex.height, tex.width
-            if tex.dtype == "f4":
-                lin = np.frombuffer(tex.read(), dtype=np.float32).reshape(h, w, 4)[::-1, :, :3]
-                img = np.clip(np.rint(np.clip(lin, 0.0, 1.0) * 255.0), 0, 255).astype(np.uint8)
-                return np.ascontiguousarray(img), np.ascontiguousarray(lin)
-            img = np.frombuffer(tex.read(), dtype=np.uint8).reshape(h, w, 4)[::-1, :, :3]
-            return np.ascontiguousarray(img), None
+            return _image_and_linear(tex.read(), tex.dtype == "f4", tex.size)
+
+        return lambda: read(self)
+
+    def _target_reader(self, host):
+        """A function reading the frame's rectangle of an over_target framebuffer: the composed picture."""
+
+        @on_context
+        def read(self) -> tuple[np.ndarray, np.ndarray | None]:
+            linear = host.fbo.color_attachments[0].dtype in ("f2", "f4")  # a float target holds linear values
+            data = host.fbo.read(viewport=host.viewport, components=4, dtype="f4" if linear else "f1")
+            return _image_and_linear(data, linear, host.viewport[2:])
 
         return lambda: read(self)
 

@@ -62,11 +62,11 @@ def _wall_node():
 class HostFrame:
     """The host's framebuffer (RGBA8 colour and a depth texture or renderbuffer) with its opaque layer drawn."""
 
-    def __init__(self, ctx, depth="texture", size=(W, H), viewport=None):
+    def __init__(self, ctx, depth="texture", size=(W, H), viewport=None, dtype="f1"):
         self.ctx = ctx
         make_depth = ctx.depth_texture if depth == "texture" else ctx.depth_renderbuffer
         with ctx:
-            self.fbo = ctx.framebuffer([ctx.texture(size, 4)], make_depth(size))
+            self.fbo = ctx.framebuffer([ctx.texture(size, 4, dtype=dtype)], make_depth(size))
             self.prog = ctx.program(vertex_shader=HOST_VS, fragment_shader=HOST_FS)
         self.viewport = viewport or (0, 0, *size)
 
@@ -159,8 +159,22 @@ def test_exact_composite_over_the_host_colour_and_depth(host_ctx, depth):
     assert np.abs(got[right] - magenta).max() > 30  # covered by the transparent quads in front of it
     # the host's depth afterwards: the wall and guaca's opaque surfaces, nearest first
     np.testing.assert_allclose(host.depth(), _expected_depth(scene), atol=2e-6)
-    # the frame itself (FrameResult) is guaca's layer alone: black where nothing of guaca covers the host
-    assert res.image[H // 2, 2].max() == 0 and res.stats["method"] == "presort_lf_et"
+    # the frame's image is the composed picture, read from the target
+    np.testing.assert_array_equal(res.image, host.colour())
+    assert res.linear is None and res.stats["method"] == "presort_lf_et"
+    r.release()
+    host.release()
+
+
+def test_a_float_target_holds_the_exact_composite_in_float(host_ctx):
+    """With the exact pipeline and an RGBA32F target the composite over the host is exact to float precision."""
+    scene = _scene()
+    host = HostFrame(host_ctx, "renderbuffer", dtype="f4")
+    host.draw(scene)
+    r = Renderer("exact", ctx=host_ctx)
+    res = r.render(scene, W, H, target=host.fbo, over_target=True)
+    assert res.linear is not None
+    np.testing.assert_allclose(res.linear, _reference(scene), atol=2e-3)
     r.release()
     host.release()
 
@@ -216,13 +230,14 @@ def test_over_a_viewport_of_the_target_and_host_state_restored(host_ctx):
         host_ctx.depth_func = "<="
         state = HostGLState(raw_gl(), (host_ctx.default_texture_unit,))
     r = Renderer("exact", ctx=host_ctx)
-    r.render(scene, W, H, target=host.fbo, viewport=(W, 0, W, H), over_target=True)
+    res = r.render(scene, W, H, target=host.fbo, viewport=(W, 0, W, H), over_target=True, read_back=False)
     with host_ctx:
         after = HostGLState(raw_gl(), (host_ctx.default_texture_unit,))
         for attr in ("scalars", "caps", "blend_i", "blend_funcs", "color_masks", "buffers", "indexed", "images"):
             assert getattr(after, attr) == getattr(state, attr), attr
         assert after.textures == state.textures
     colour, depth = host.colour(), host.depth()
+    np.testing.assert_array_equal(res.image, colour[:, W:])  # read when asked: the frame's rectangle of the target
     np.testing.assert_array_equal(colour[:, :W], before_colour[:, :W])
     np.testing.assert_array_equal(depth[:, :W], before_depth[:, :W])
     err = np.abs(colour[:, W:].astype(np.float64) - _reference(scene) * 255.0).max()
