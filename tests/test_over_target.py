@@ -162,6 +162,11 @@ def test_exact_composite_over_the_host_colour_and_depth(host_ctx, depth):
     # the frame's image is the composed picture, read from the target
     np.testing.assert_array_equal(res.image, host.colour())
     assert res.linear is None and res.stats["method"] == "presort_lf_et"
+    # the next frame without the host's layer leaves nothing of it behind (G-buffer depth and marks)
+    alone = simple_scene(scene.nodes, background=HOST_CLEAR)
+    fresh = Renderer("exact", ctx=host_ctx)
+    np.testing.assert_array_equal(r.render(alone, W, H).image, fresh.render(alone, W, H).image)
+    fresh.release()
     r.release()
     host.release()
 
