@@ -72,6 +72,8 @@ def _cmd_render(args) -> int:
     timing = s.get("timing")
     how = f", median of {timing['frames']} frames after {timing['warmup']} warm-up" if timing else ", one frame"
     print(f"method {s['method']} ({s['insertion_path']} insertion), timer: {s['timer']}{how}")
+    if s.get("method_auto"):
+        print(f"  (method: auto) {s['method_auto']}")
     for name, p in s["passes"].items():
         print(f"  {name:<14} {p['ms']:10.3f} ms")
     ra = s.get("raster")
@@ -119,13 +121,19 @@ def _cmd_view(args) -> int:
 
 def _cmd_info(args) -> int:
     from .context import probe_capabilities
+    from .methods import auto
     from .raster.choice import device_rule, order_rule
 
     caps = probe_capabilities()  # released again: the caller's current context stays current
     d = caps.as_dict()
+    method_auto, method_why = auto.choose(caps)
     if args.json:
         info = dict(
-            d, insertion_path=caps.insertion_path, raster_auto=device_rule(caps), raster_order_auto=order_rule()
+            d,
+            insertion_path=caps.insertion_path,
+            raster_auto=device_rule(caps),
+            raster_order_auto=order_rule(),
+            method_auto={"method": method_auto, "why": method_why},
         )
         print(json.dumps(info, indent=2))
         return 0
@@ -144,6 +152,7 @@ def _cmd_info(args) -> int:
         f"A-buffer insertion path: {caps.insertion_path} "
         f"({'64-bit atomicMax on (depth, pointer)' if caps.insertion_path == '64bit' else '32-bit CAS on immutable nodes'})"
     )
+    print(f"transparency method (method: auto): {method_auto}, {method_why}")
     print(f"transparent raster (raster: auto): {device_rule(caps)}")
     print(f"compute triangle order (raster_order: auto): {order_rule()}")
     return 0
@@ -181,7 +190,7 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("render", help="render a scene file (default: the built-in demo) to PNG")
     r.add_argument("scene", nargs="?", help="scene YAML, glTF or mesh file (default: built-in demo)")
     r.add_argument("--pipeline", default="default", help="pipeline YAML or built-in name (default, exact)")
-    r.add_argument("--method", help="transparency method id (see `guaca methods`)")
+    r.add_argument("--method", help="transparency method id (see `guaca methods`), or auto: the fastest exact one here")
     r.add_argument(
         "--set",
         action="append",
@@ -201,7 +210,7 @@ def build_parser() -> argparse.ArgumentParser:
     v = sub.add_parser("view", help="look at a scene interactively (orbit/fly camera, method and debug-view keys)")
     v.add_argument("scene", nargs="?", help="scene YAML, glTF or mesh file (default: built-in demo)")
     v.add_argument("--pipeline", default="default", help="pipeline YAML or built-in name (default, exact)")
-    v.add_argument("--method", help="transparency method to start with (M / N keys switch)")
+    v.add_argument("--method", help="transparency method to start with, or auto (M / N keys switch)")
     v.add_argument("--view", default="shaded", choices=("shaded", "depth_complexity", "light_count"))
     v.add_argument("--width", type=int, default=1024)
     v.add_argument("--height", type=int, default=768)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from .. import antialiasing
 from ..errors import ConfigError
-from ..registry import METHODS, PASSES
+from ..registry import AUTO, METHODS, PASSES, auto_settings_schema, unknown_method
 from ..resources import builtin_pipeline
 from ..yaml_source import Located, load_yaml_file, load_yaml_text
 from .settings import Setting, positive, resolve_settings
@@ -66,10 +66,12 @@ def parse_pipeline(doc: Located) -> PipelineConfig:
     if not isinstance(data.get("transparency", {}), dict):
         raise doc.error(("transparency",), "must be a mapping like {method: presort_lf_et}")
     mid = tr.pop("method", "presort_lf_et")
-    if mid not in METHODS:
-        raise doc.error(("transparency", "method"), *METHODS.unknown(mid))
-    schema = METHODS.get(mid).settings_schema()
+    if mid != AUTO and mid not in METHODS:
+        raise doc.error(("transparency", "method"), *unknown_method(mid))
+    schema = auto_settings_schema() if mid == AUTO else METHODS.get(mid).settings_schema()
     settings = resolve_settings(schema, tr, lambda k, r, h: doc.error(("transparency", k), r, h))
+    if mid == AUTO:  # the values given; the method picked on the device fills in its own defaults
+        settings = {k: settings[k] for k in tr}
     aa = antialiasing.parse(
         data.get("antialiasing"), lambda k, r, h: doc.error(("antialiasing",) + ((k,) if k else ()), r, h)
     )
