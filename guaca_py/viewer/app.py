@@ -108,7 +108,9 @@ class Viewer:
         if r is None:
             r = self.renderers[self.view] = Renderer(view_pipeline(self.pipeline, self.view), ctx=self.ctx)
         budget = None
-        if self.overflow_mode and size and "budget_mb" in method_class(self.method).settings_schema():
+        # `auto` names no method: the one it picked for this renderer decides
+        mid = r.method.id if self.method == "auto" else self.method
+        if self.overflow_mode and size and "budget_mb" in method_class(mid).settings_schema():
             budget = size[0] * size[1] * OVERFLOW_BYTES_PER_PIXEL / 2**20
         if self._applied.get(self.view) != (self.method, budget):
             r.set_method(self.method, {"budget_mb": budget} if budget else None)
