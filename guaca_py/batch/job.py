@@ -49,9 +49,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..antialiasing import with_settings
+from ..antialiasing import method_refusal, with_settings
 from ..errors import ConfigError
-from ..numeric import POSITIVE, Range, number_hint
+from ..numeric import POSITIVE, Range, number_hint, yaml_number_hint
 from ..pipeline.config import PipelineConfig, load_pipeline
 from ..registry import METHODS
 from ..resources import builtin_pipeline
@@ -143,7 +143,7 @@ class _Reader:
 
     def integer(self, value: Any, path: tuple, lo: int, hi: int) -> int:
         if isinstance(value, bool) or not isinstance(value, int):
-            raise self.error(path, f"expected a whole number, got {value!r}", number_hint(value))
+            raise self.error(path, f"expected a whole number, got {value!r}", yaml_number_hint(value))
         if not lo <= value <= hi:
             raise self.error(path, f"must be in [{lo}, {hi}], got {value}")
         return value
@@ -224,6 +224,9 @@ def _variant(r: _Reader, value: Any, path: tuple, base: Path) -> Variant:
     if not isinstance(given, dict):
         raise r.error(path + ("set",), f"expected a mapping of settings, got {given!r}", "e.g. {threshold: 0.95}")
     pipeline, overrides = apply_set(pipeline, method, given, lambda key: (r, path + ("set", key)))
+    refusal = method_refusal(METHODS.get(method or pipeline.transparency["method"]), pipeline.antialiasing["samples"])
+    if refusal:
+        raise r.error(path, refusal)
     size = r.size(value["resolution"], path + ("resolution",)) if "resolution" in value else None
     return Variant(name, pipeline, method, overrides, size)
 
@@ -280,7 +283,7 @@ def _camera(r: _Reader, value: Any, frames: int | None) -> tuple[tuple[str, Any]
             raise r.error(("frames",), f"frames is {frames} but the camera list has {len(spec)}", "drop frames:")
         return ("list", [r.camera_values(c, path + (i,)) for i, c in enumerate(spec)]), len(spec)
     if frames is None:
-        raise r.error(("frames",), "missing: keyframes are placed on a number of frames", "e.g. frames: 48")
+        raise r.error(path, "needs 'frames': keyframes are placed on a number of frames", "e.g. frames: 48")
     return ("keyframes", r.keyframes(spec, path, frames, r.camera_values)), frames
 
 
@@ -372,7 +375,7 @@ def _check_video(r: _Reader, resolution, variants: list[Variant]) -> None:
 def load_job(job: str | Path | dict, base: str | Path | None = None) -> Job:
     """A Job from a YAML file, or from a dict of the same form (paths relative to `base`, default the cwd)."""
     if isinstance(job, dict):
-        doc = Located(job, {}, "<job>")
+        doc = Located(job, {(): None}, "<job>")  # no lines to cite: errors name the key
         return parse_job(doc, Path(base) if base is not None else Path.cwd())
     p = Path(job)
     return parse_job(load_yaml_file(p), p.parent)

@@ -140,9 +140,11 @@ def _run(job: Job, out: Path, t0, workers, ray, chunk, encoders, progress, on_fr
         pending = chunks(todo, size)
         try:
             backend.start(min(count, len(pending)))
-            _drive(backend, pending, out, manifest, result, t0, Progress(len(tasks), len(done), progress), on_frame)
+            bar = Progress(len(tasks), len(done), progress)
+            done.update(_drive(backend, pending, out, manifest, result, t0, bar, on_frame))
         finally:
             manifest.close()
+        manifest.keep([done[t.id] for t in tasks])  # in frame order: a rerun finds it as it is and leaves it
         rendered_groups = {str(Path(t.file).parent) + ".mp4" for t in todo}
     if job.video:
         for rel, group in video_groups(tasks).items():
@@ -160,13 +162,18 @@ def manifest_line(task: Task, record: dict, size: int, sha256: str) -> dict:
     return {**where, "camera": task.camera, **nodes, "size": list(task.size), **record, **checks}
 
 
-def _drive(backend, pending: deque, out: Path, manifest: Manifest, result: BatchResult, t0, bar, on_frame) -> None:
-    """Hand out chunks, collect frames, write them and their manifest lines, until every frame is written."""
+def _drive(backend, pending: deque, out: Path, manifest: Manifest, result: BatchResult, t0, bar, on_frame) -> dict:
+    """Hand out chunks, collect frames, write them and their manifest lines, until every frame is written.
+
+    Returns the manifest lines written, by task id.
+    """
     tasks = {t.id: t for c in pending for t in c}
     held: dict[int, list[list[int]]] = {}  # worker -> its chunks' unfinished task ids
     ready: set[int] = set()
+    names: dict[int, str] = {}
     attempts: dict[int, int] = {}
     writes: dict[Future, tuple[Task, dict]] = {}
+    lines: dict[int, dict] = {}
     remaining = len(tasks)
     received: set[int] = set()
     unready_deaths = 0
@@ -183,6 +190,7 @@ def _drive(backend, pending: deque, out: Path, manifest: Manifest, result: Batch
                     kind, wid = event[0], event[1]
                     if kind == "ready":
                         ready.add(wid)
+                        names[wid] = event[2]
                         result.workers.append(event[2])
                     elif kind == "frame":
                         task_id, png, record = event[2:]
@@ -196,7 +204,7 @@ def _drive(backend, pending: deque, out: Path, manifest: Manifest, result: Batch
                         task = tasks[task_id]
                         writes[pool.submit(write_image, out, task, png)] = (task, record)
                     elif kind == "error":
-                        raise BatchError(f"worker {wid}: {event[2]}")
+                        raise BatchError(f"worker {names.get(wid, wid)}: {event[2]}")
                     elif kind == "dead":
                         why = event[2] if len(event) > 2 else "it exited"
                         if wid not in ready:
@@ -222,6 +230,7 @@ def _drive(backend, pending: deque, out: Path, manifest: Manifest, result: Batch
                     task, record = writes.pop(f)
                     line = manifest_line(task, record, *f.result())
                     manifest.append(line)
+                    lines[task.id] = line
                     remaining -= 1
                     result.rendered += 1
                     if result.first_frame_s is None:
@@ -230,6 +239,7 @@ def _drive(backend, pending: deque, out: Path, manifest: Manifest, result: Batch
                     if on_frame is not None:
                         on_frame(line)
             aborted = False
+            return lines
         finally:
             backend.close(abort=aborted)
             for f in list(writes):  # frames already received are kept, even when the job ends early

@@ -134,7 +134,7 @@ class FrameWorker:
 def process_main(tasks_in, results_out, scenes: list[ScenePayload], variants: dict, gpu, encoders: int) -> None:
     """A local worker process: chunks arrive on `tasks_in` (None ends), results leave on `results_out`.
 
-    Messages out: ("ready", name), ("frame", id, png, record), ("error", name, text). Each
+    Messages out: ("ready", name), ("frame", id, png, record), ("error", text). Each
     process has its own pipes, so a worker killed mid-message corrupts only its own (the driver
     reads EOF there and hands its frames to the others).
     """
@@ -170,7 +170,7 @@ def process_main(tasks_in, results_out, scenes: list[ScenePayload], variants: di
         pass
     except BaseException as exc:  # the driver ends the job with this message
         try:
-            send(("error", worker_name(), _describe(exc)))
+            send(("error", _describe(exc)))
         except OSError:
             pass
     finally:
