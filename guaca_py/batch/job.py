@@ -21,6 +21,7 @@ Job file format
       - {name: aa4, method: presort_lf, set: {antialiasing.samples: 4}, resolution: [128, 96]}
     video: false                      # true: DIR/<variant>.mp4 as well (pip install "guaca_py[video]")
     fps: 24                           # frames per second of the videos
+    png_level: 1                      # zlib level of the PNGs, 0-9 (the pixels are the same at every level)
 
 Camera paths
     ``orbit``: frame i at θ = degrees·i/frames, position = target + (radius·sin θ, height,
@@ -57,7 +58,7 @@ from ..registry import METHODS
 from ..resources import builtin_pipeline
 from ..yaml_source import Located, load_yaml_file
 
-TOP_KEYS = ("scene", "frames", "camera", "animate", "resolution", "variants", "video", "fps")
+TOP_KEYS = ("scene", "frames", "camera", "animate", "resolution", "variants", "video", "fps", "png_level")
 CAMERA_PATHS = ("orbit", "keyframes", "list")
 ORBIT_KEYS = ("target", "radius", "height", "degrees")
 CAMERA_KEYS = ("position", "target", "up", "fov_y", "near", "far")
@@ -108,6 +109,7 @@ class Job:
     video: bool = False
     fps: float = 24.0
     scene_names: list[str] = field(default_factory=list)
+    png_level: int = 1  # 1 encodes a 1024² frame ~5x faster than 6 (FrameResult.save's) for ~12% more bytes
 
     @property
     def file(self) -> str:
@@ -356,7 +358,8 @@ def parse_job(doc: Located, base: Path) -> Job:
     fps = r.number(data.get("fps", 24), ("fps",), POSITIVE)
     if video:
         _check_video(r, resolution, variants)
-    return Job(doc, scenes, frames, camera, animate, resolution, variants, video, fps, names)
+    level = r.integer(data.get("png_level", 1), ("png_level",), 0, 9)
+    return Job(doc, scenes, frames, camera, animate, resolution, variants, video, fps, names, level)
 
 
 def _check_video(r: _Reader, resolution, variants: list[Variant]) -> None:

@@ -7,13 +7,14 @@ crashed) is reported dead once its pipe is drained; the frames it had not sent g
 
 from __future__ import annotations
 
+import dataclasses
 import multiprocessing as mp
 import shutil
 import subprocess
 from multiprocessing.connection import wait
 
-from .plan import ScenePayload, Task
-from .worker import default_encoders, process_main
+from .plan import Task
+from .worker import WorkerSetup, default_encoders, process_main
 
 
 def gpu_count() -> int:
@@ -39,9 +40,9 @@ class LocalWorkers:
 
     kind = "local"
 
-    def __init__(self, scenes: list[ScenePayload], variants: dict, encoders: int | None):
+    def __init__(self, setup: WorkerSetup):
         self.ctx = mp.get_context("spawn")  # no fork: a forked GL or EGL state is not safe to use
-        self.scenes, self.variants, self.encoders = scenes, variants, encoders
+        self.setup = setup
         self.gpus = gpu_count()
         self.count = max(1, self.gpus)  # workers unless told: one per GPU, one on a software rasterizer
         self.procs: dict[int, _Proc] = {}
@@ -49,8 +50,8 @@ class LocalWorkers:
 
     def start(self, count: int) -> None:
         """Start `count` worker processes."""
-        if self.encoders is None:
-            self.encoders = default_encoders(count)
+        if self.setup.encoders is None:  # this machine's cores shared by its workers
+            self.setup = dataclasses.replace(self.setup, encoders=default_encoders(count))
         for _ in range(count):
             self._start()
 
@@ -62,7 +63,7 @@ class LocalWorkers:
         gpu = wid % self.gpus if self.gpus else None
         p = self.ctx.Process(
             target=process_main,
-            args=(tasks_in, results_out, self.scenes, self.variants, gpu, self.encoders),
+            args=(tasks_in, results_out, self.setup, gpu),
             name=f"guaca-batch-{wid}",
             daemon=True,
         )

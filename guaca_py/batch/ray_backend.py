@@ -12,19 +12,18 @@ from __future__ import annotations
 import time
 
 from ..errors import GuacaError
-from .plan import ScenePayload, Task
-from .worker import FrameWorker, default_encoders
+from .plan import Task
+from .worker import FrameWorker, WorkerSetup
 
 
 class RayWorker:
     """The actor: a FrameWorker on the GPU Ray assigned (its id taken as the EGL device index)."""
 
-    def __init__(self, scenes: list[ScenePayload], variants: dict, encoders: int | None):
+    def __init__(self, setup: WorkerSetup):
         import ray
 
         ids = ray.get_gpu_ids()
-        gpu = int(ids[0]) if ids else None
-        self.worker = FrameWorker(scenes, variants, gpu, default_encoders(1) if encoders is None else encoders)
+        self.worker = FrameWorker(setup, int(ids[0]) if ids else None)
 
     def name(self) -> str:
         """`host:pid` of the actor's process."""
@@ -49,7 +48,7 @@ class RayWorkers:
 
     kind = "ray"
 
-    def __init__(self, scenes: list[ScenePayload], variants: dict, encoders: int | None, address):
+    def __init__(self, setup: WorkerSetup, address):
         ray = self.ray = import_ray()
         self.owns = not ray.is_initialized()
         if self.owns:
@@ -59,7 +58,8 @@ class RayWorkers:
         self.options = {"num_gpus": 1} if gpus else {"num_cpus": 1}
         self.count = gpus or max(1, int(resources.get("CPU", 1)))  # workers unless told: one per GPU, else per CPU
         self.actor_class = ray.remote(RayWorker)
-        self.args = (ray.put(scenes), variants, encoders)
+        # the scenes go into the object store once; every actor reads them from there
+        self.args = (ray.put(setup),)
         self.actors: dict[int, object] = {}
         self.ready: dict[int, str] = {}
         self.inflight: dict = {}  # object ref -> (wid, what): "ready" or the chunk's task ids

@@ -23,6 +23,7 @@ from .job import Job, load_job
 from .plan import Task, plan, scene_payload, video_groups
 from .progress import Progress
 from .store import FolderLock, Manifest, write_image, write_video
+from .worker import WorkerSetup
 
 MAX_ATTEMPTS = 3  # workers a frame may be lost with before the job gives up on it
 IN_FLIGHT_CHUNKS = 2  # chunks a worker holds at once: the one it renders and the next
@@ -127,14 +128,15 @@ def _run(job: Job, out: Path, t0, workers, ray, chunk, encoders, progress, on_fr
     rendered_groups: set[str] = set()
     if todo:
         variants = {v.name: (v.pipeline, v.method, v.overrides) for v in job.variants}
+        setup = WorkerSetup(payloads, variants, job.png_level, encoders)
         if ray:
             from .ray_backend import RayWorkers
 
-            backend = RayWorkers(payloads, variants, encoders, ray)
+            backend = RayWorkers(setup, ray)
         else:
             from .local import LocalWorkers
 
-            backend = LocalWorkers(payloads, variants, encoders)
+            backend = LocalWorkers(setup)
         count = workers or backend.count
         size = chunk or auto_chunk(len(todo), count)
         pending = chunks(todo, size)

@@ -15,6 +15,7 @@ import threading
 import traceback
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass
 
 from .plan import ScenePayload, Task, apply_task
 
@@ -24,34 +25,46 @@ def worker_name() -> str:
     return f"{socket.gethostname()}:{os.getpid()}"
 
 
-def encode_png(image) -> bytes:
-    """PNG bytes of an (H, W, 3) uint8 image, as `FrameResult.save` writes them (Pillow's defaults)."""
+def encode_png(image, level: int = 6) -> bytes:
+    """PNG bytes of an (H, W, 3) uint8 image at zlib `level` (6, Pillow's default, is what `FrameResult.save` writes)."""
     from PIL import Image
 
     buf = io.BytesIO()
-    Image.fromarray(image).save(buf, format="PNG")
+    Image.fromarray(image).save(buf, format="PNG", compress_level=level)
     return buf.getvalue()
 
 
 def default_encoders(workers: int) -> int:
-    """Encoder threads per worker: the machine's cores shared out, one left to each renderer, 1 to 8."""
-    return max(1, min(8, (os.cpu_count() or 2) // max(1, workers) - 1))
+    """Encoder threads per worker: the machine's cores shared out, two left to the renderer and the driver, 1 to 16."""
+    return max(1, min(16, (os.cpu_count() or 2) // max(1, workers) - 2))
+
+
+@dataclass(frozen=True)
+class WorkerSetup:
+    """What every worker of a job gets once: the scenes, the variants, how to write PNGs."""
+
+    scenes: list[ScenePayload]
+    variants: dict  # name -> (PipelineConfig, method, transparency overrides)
+    png_level: int = 1
+    encoders: int | None = None  # threads; None: default_encoders(1) on the worker's machine
 
 
 class FrameWorker:
     """Renders tasks: a context on GPU `gpu` (EGL device index; None: the default device), a Renderer per variant."""
 
-    def __init__(self, scenes: list[ScenePayload], variants: dict, gpu: int | None = None, encoders: int = 2):
-        self.payloads = {p.name: p for p in scenes}
-        self.variants = variants  # name -> (PipelineConfig, method, overrides)
+    def __init__(self, setup: WorkerSetup, gpu: int | None = None):
+        self.payloads = {p.name: p for p in setup.scenes}
+        self.variants = setup.variants
+        self.png_level = setup.png_level
         self.gpu = gpu
         self.scenes: dict = {}
         self.renderers: dict = {}
         self.name = worker_name()
         self.ctx = self._context()
-        self.pool = ThreadPoolExecutor(max(1, encoders), thread_name_prefix="png")
+        encoders = setup.encoders or default_encoders(1)
+        self.pool = ThreadPoolExecutor(encoders, thread_name_prefix="png")
         # frames read back but not yet encoded: bounded, so rendering never runs far ahead of the encoders
-        self.in_flight = threading.BoundedSemaphore(2 * max(1, encoders) + 1)
+        self.in_flight = threading.BoundedSemaphore(2 * encoders + 1)
 
     def _context(self):
         from ..context import create_context
@@ -115,7 +128,7 @@ class FrameWorker:
 
     def _encode(self, task_id: int, image, record: dict, emit) -> tuple[int, bytes, dict]:
         try:
-            png = encode_png(image)
+            png = encode_png(image, self.png_level)
             if emit is not None:
                 emit(task_id, png, record)
             return task_id, png, record
@@ -131,7 +144,7 @@ class FrameWorker:
         self.ctx.release()
 
 
-def process_main(tasks_in, results_out, scenes: list[ScenePayload], variants: dict, gpu, encoders: int) -> None:
+def process_main(tasks_in, results_out, setup: WorkerSetup, gpu: int | None) -> None:
     """A local worker process: chunks arrive on `tasks_in` (None ends), results leave on `results_out`.
 
     Messages out: ("ready", name), ("frame", id, png, record), ("error", text). Each
@@ -154,7 +167,7 @@ def process_main(tasks_in, results_out, scenes: list[ScenePayload], variants: di
 
     worker = None
     try:
-        worker = FrameWorker(scenes, variants, gpu, encoders)
+        worker = FrameWorker(setup, gpu)
         send(("ready", worker.name))
         while not failures:
             chunk = tasks_in.recv()

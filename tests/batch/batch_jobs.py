@@ -60,10 +60,8 @@ def orbit_cameras(frames: int) -> list:
     return out
 
 
-def sequential_pngs(
-    scene_path: Path, cameras: list, tmp: Path, pipeline: str = "exact", size=(64, 48), **renderer
-) -> list[bytes]:
-    """PNG bytes of a plain loop: one Renderer, `render` per camera, `FrameResult.save`."""
+def sequential_images(scene_path: Path, cameras: list, pipeline: str = "exact", size=(64, 48), **renderer) -> list:
+    """The images of a plain loop: one Renderer, `render` per camera."""
     from guaca_py import Renderer
     from guaca_py.scene.loader import load_scene
 
@@ -71,9 +69,25 @@ def sequential_pngs(
     r = Renderer(pipeline, **renderer)
     out = []
     try:
-        for i, cam in enumerate(cameras):
+        for cam in cameras:
             scene.camera = cam
-            out.append(r.render(scene, *size).save(tmp / f"ref_{i}.png").read_bytes())
+            out.append(r.render(scene, *size).image)
     finally:
         r.release()
     return out
+
+
+def png_pixels(path: Path):
+    """The pixels of a PNG file, (H, W, 3) uint8."""
+    import numpy as np
+    from PIL import Image
+
+    with Image.open(path) as img:
+        return np.asarray(img.convert("RGB"))
+
+
+def differing(files: list[Path], images: list) -> list[int]:
+    """Indices of the files whose pixels are not exactly the image's."""
+    import numpy as np
+
+    return [i for i, (f, img) in enumerate(zip(files, images, strict=True)) if not np.array_equal(png_pixels(f), img)]

@@ -176,6 +176,7 @@ BAD = [
     ),
     ("scene: scene.yaml\nframes: 4\nresolution: [64]\n", 3, "resolution", "[width, height]"),
     ("scene: scene.yaml\nframes: 4\nvideo: yes\n", 3, "video", "true or false"),
+    ("scene: scene.yaml\nframes: 4\npng_level: 12\n", 3, "png_level", "must be in [0, 9]"),
 ]
 
 
