@@ -35,8 +35,11 @@ def _pixels_digest(image: np.ndarray) -> str:
     return hashlib.sha256(np.ascontiguousarray(image).tobytes()).hexdigest()
 
 
-def plain_loop(scene_path: Path | None, job, size: int) -> dict:
-    """The plain loop: load, one Renderer, `render(read_back=True)` per frame; digests of its images, costs of PNG and write."""
+def plain_loop(scene_path: Path | None, job, size: int, check: bool = True) -> dict:
+    """The plain loop: load, one Renderer, `render(read_back=True)` per frame.
+
+    `check`: then, untimed, the digest of every image and the costs of encoding and writing PNGs.
+    """
     from ..output import write_atomic
     from ..renderer import Renderer
     from ..scene.files import load_any
@@ -56,7 +59,7 @@ def plain_loop(scene_path: Path | None, job, size: int) -> dict:
             frame = r.render(scene, size, size)
             times.append(time.perf_counter())
         device, timer = frame.stats["device"], frame.stats["timer"]
-        for i, cam in enumerate(cams):  # again, untimed: what each image must be
+        for i, cam in enumerate(cams if check else []):  # again, untimed: what each image must be
             scene.camera = Camera(**cam)
             image = r.render(scene, size, size).image
             digests.append(_pixels_digest(image))
@@ -67,7 +70,7 @@ def plain_loop(scene_path: Path | None, job, size: int) -> dict:
     encode: dict[int, list[float]] = {level: [] for level in PNG_LEVELS}
     write = []
     with tempfile.TemporaryDirectory() as tmp:
-        for i, img in enumerate(images[1:] or images):
+        for i, img in enumerate(images[1:] or images):  # none without `check`
             for level in PNG_LEVELS:
                 t = time.perf_counter()
                 png = encode_png(img, level)
@@ -84,10 +87,16 @@ def plain_loop(scene_path: Path | None, job, size: int) -> dict:
         "wall_s": times[-1] - t0,
         "fps": n / (times[-1] - t0),
         "steady_fps": (n - 1) / (times[-1] - times[0]) if n > 1 else None,
-        "png_encode_ms": {level: 1e3 * statistics.median(t) for level, t in encode.items()},
-        "png_kib": {level: len(encode_png(images[-1], level)) / 1024 for level in PNG_LEVELS},
-        "write_ms": 1e3 * statistics.median(write),
         "digests": digests,
+        **(
+            {
+                "png_encode_ms": {level: 1e3 * statistics.median(t) for level, t in encode.items()},
+                "png_kib": {level: len(encode_png(images[-1], level)) / 1024 for level in PNG_LEVELS},
+                "write_ms": 1e3 * statistics.median(write),
+            }
+            if check
+            else {}
+        ),
     }
 
 
@@ -121,6 +130,17 @@ def batch_run(job, workers: int, expected: list[str]) -> dict:
         "identical": not mismatched,
         "mismatched_frames": mismatched,
     }
+
+
+def _medians(records: list[dict]) -> dict:
+    """The first record with each rate and time replaced by its median over all records (their values kept beside)."""
+    out = dict(records[0])
+    for key in ("steady_fps", "fps", "first_frame_s", "wall_s"):
+        values = [r[key] for r in records if r.get(key) is not None]
+        if values:
+            out[key] = statistics.median(values)
+            out[key + "_runs"] = values
+    return out
 
 
 def ray_overhead(calls: int = 200) -> dict:
@@ -161,7 +181,8 @@ def markdown(rec: dict) -> str:
         f"with N local worker processes writing PNGs and the manifest. Steady rates leave the first frame out; "
         f"the first frame counts from the call (scene loading, worker start, program compilation included). "
         f"Times are wall-clock ({'frames rendered on the GPU' if p['timer'] == 'gpu' else 'llvmpipe renders on the CPU'}). "
-        f"Machine: {rec['cpus']} CPU cores, load average {rec['load_before']:.1f} before the run.",
+        f"Machine: {rec['cpus']} CPU cores, load average {rec['load_before']:.1f} before the run. "
+        f"Medians of {rec['repeat']} interleaved run(s) of each configuration.",
         "",
         "| run | frames/s (steady) | frames/s (whole call) | first frame s | vs plain loop (steady) | images |",
         "|---|---|---|---|---|---|",
@@ -203,6 +224,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--size", type=int, default=256, help="frame width and height in pixels")
     ap.add_argument("--frames", type=int, default=48, help="frames of the turntable")
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2], help="local worker counts to run")
+    ap.add_argument("--repeat", type=int, default=1, help="runs of each configuration (medians are reported)")
     ap.add_argument("--ray", action="store_true", help="also measure a Ray actor call's round trip (needs ray)")
     ap.add_argument("--out", type=Path, help="results folder (default: benchmarks/results/<device>/batch/)")
     args = ap.parse_args(argv)
@@ -220,18 +242,25 @@ def main(argv: list[str] | None = None) -> int:
                 "resolution": [args.size, args.size],
             }
         )
-        print(f"plain loop: {scene.name}, {args.size}², {args.frames} frames", flush=True)
-        plain = plain_loop(args.scene, job, args.size)
-        print(f"  {plain['steady_fps']:.2f} frames/s, first frame {plain['first_frame_s']:.2f} s", flush=True)
-        runs = []
-        for w in args.workers:
-            b = batch_run(job, w, plain["digests"])
-            runs.append(b)
-            print(
-                f"batch, {w} worker(s): {b['steady_fps']:.2f} frames/s steady, {b['fps']:.2f} whole call, "
-                f"first frame {b['first_frame_s']:.2f} s, images {'identical' if b['identical'] else 'DIFFER'}",
-                flush=True,
-            )
+        print(f"plain loop: {scene.name}, {args.size}², {args.frames} frames, {args.repeat} time(s)", flush=True)
+        plains: list[dict] = []
+        batches: dict[int, list[dict]] = {w: [] for w in args.workers}
+        for rep in range(args.repeat):  # interleaved, so a slow spell of the machine hits every configuration
+            p = plain_loop(args.scene, job, args.size, check=rep == 0)
+            plains.append(p)
+            print(f"  plain loop: {p['steady_fps']:.2f} frames/s, first frame {p['first_frame_s']:.2f} s", flush=True)
+            for w in args.workers:
+                b = batch_run(job, w, plains[0]["digests"])
+                batches[w].append(b)
+                print(
+                    f"  batch, {w} worker(s): {b['steady_fps']:.2f} frames/s steady, {b['fps']:.2f} whole call, "
+                    f"first frame {b['first_frame_s']:.2f} s, images {'identical' if b['identical'] else 'DIFFER'}",
+                    flush=True,
+                )
+    plain = _medians(plains)
+    runs = [_medians(batches[w]) for w in args.workers]
+    for w, r in zip(args.workers, runs):
+        r["identical"] = all(b["identical"] for b in batches[w])
     rec = {
         "command": f"python -m guaca_py.batch.bench {shlex.join(argv)}".rstrip(),
         "scene": scene.stem,
@@ -239,6 +268,7 @@ def main(argv: list[str] | None = None) -> int:
         "frames": args.frames,
         "cpus": os.cpu_count(),
         "load_before": load_before,
+        "repeat": args.repeat,
         "plain": {k: v for k, v in plain.items() if k != "digests"},
         "batch": runs,
     }

@@ -9,7 +9,10 @@ dead and its chunks go to the others.
 
 from __future__ import annotations
 
+import queue
+import threading
 import time
+from concurrent.futures import Future
 
 from ..errors import GuacaError
 from .plan import Task
@@ -17,21 +20,46 @@ from .worker import FrameWorker, WorkerSetup
 
 
 class RayWorker:
-    """The actor: a FrameWorker on the GPU Ray assigned (its id taken as the EGL device index)."""
+    """The actor: a FrameWorker on the GPU Ray assigned (its id taken as the EGL device index).
+
+    The actor takes two calls at once (`max_concurrency`), so the next chunk renders while the
+    last one's PNGs are still encoding; every frame is rendered on one thread of its own, which
+    made the GL context and keeps it current.
+    """
 
     def __init__(self, setup: WorkerSetup):
         import ray
 
         ids = ray.get_gpu_ids()
-        self.worker = FrameWorker(setup, int(ids[0]) if ids else None)
+        gpu = int(ids[0]) if ids else None
+        self.chunks: queue.Queue = queue.Queue()
+        started: Future = Future()
+        threading.Thread(target=self._render_loop, args=(setup, gpu, started), daemon=True).start()
+        self.worker = started.result()  # an error making the context or a renderer fails the actor here
+
+    def _render_loop(self, setup: WorkerSetup, gpu: int | None, started: Future) -> None:
+        try:
+            worker = FrameWorker(setup, gpu)
+        except BaseException as exc:
+            started.set_exception(exc)
+            return
+        started.set_result(worker)
+        while True:
+            chunk, rendered = self.chunks.get()
+            try:
+                rendered.set_result(worker.render_chunk(chunk))
+            except BaseException as exc:
+                rendered.set_exception(exc)
 
     def name(self) -> str:
         """`host:pid` of the actor's process."""
         return self.worker.name
 
     def render(self, chunk: list[Task]) -> list[tuple[int, bytes, dict]]:
-        """Render a chunk; its frames' (id, png, record)."""
-        return [f.result() for f in self.worker.render_chunk(chunk)]
+        """Render a chunk on the render thread; its frames' (id, png, record) once encoded."""
+        rendered: Future = Future()
+        self.chunks.put((chunk, rendered))
+        return [f.result() for f in rendered.result()]
 
 
 def import_ray():
@@ -55,7 +83,9 @@ class RayWorkers:
             ray.init(address=None if address is True else address, logging_level="WARNING")
         resources = ray.cluster_resources()
         gpus = int(resources.get("GPU", 0))
+        # two calls at once: a chunk renders while the one before it is encoded (RayWorker)
         self.options = {"num_gpus": 1} if gpus else {"num_cpus": 1}
+        self.options["max_concurrency"] = 2
         self.count = gpus or max(1, int(resources.get("CPU", 1)))  # workers unless told: one per GPU, else per CPU
         self.actor_class = ray.remote(RayWorker)
         # the scenes go into the object store once; every actor reads them from there
@@ -96,6 +126,8 @@ class RayWorkers:
             ready, _ = ray.wait(refs, num_returns=len(refs), timeout=0)
         events = []
         for ref in ready:
+            if ref not in self.inflight:  # a call of an actor found dead earlier in this loop
+                continue
             wid, what = self.inflight.pop(ref)
             try:
                 value = ray.get(ref)

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import os
+import signal
 
 import pytest
 from batch_jobs import differing, orbit_cameras, sequential_images, write_job
@@ -10,20 +12,39 @@ from batch_jobs import differing, orbit_cameras, sequential_images, write_job
 from guaca_py.batch import render_job
 
 
-def test_ray_renders_the_turntable_like_the_plain_loop(tmp_path):
+@pytest.fixture(scope="module")
+def local_ray():
+    """A local Ray instance with 2 CPUs for this module's tests."""
     ray = pytest.importorskip("ray", reason='Ray is not installed (pip install ".[cluster]")')
-    job = write_job(tmp_path, frames=12)
     ray.init(num_cpus=2, include_dashboard=False, logging_level="WARNING")
-    try:
-        result = render_job(job, tmp_path / "out", ray=True, progress=False)
-        assert result.backend == "ray" and result.rendered == 12
-        assert len(result.workers) == 2  # one CPU actor per CPU of the cluster
-    finally:
-        ray.shutdown()
+    yield ray
+    ray.shutdown()
+
+
+def test_ray_renders_the_turntable_like_the_plain_loop(tmp_path, local_ray):
+    job = write_job(tmp_path, frames=12)
+    result = render_job(job, tmp_path / "out", ray=True, progress=False)
+    assert result.backend == "ray" and result.rendered == 12
+    assert len(result.workers) == 2  # one CPU actor per CPU of the cluster
     lines = [json.loads(t) for t in (tmp_path / "out" / "manifest.jsonl").read_text().splitlines()]
     assert [line["frame"] for line in lines] == list(range(12))
     expected = sequential_images(tmp_path / "scene.yaml", orbit_cameras(12))
     assert differing([tmp_path / "out" / "exact" / f"{i:05d}.png" for i in range(12)], expected) == []
+
+
+def test_a_killed_actor_loses_no_frame(tmp_path, local_ray):
+    job = write_job(tmp_path, frames=16, size=(320, 240))
+    killed: list[int] = []
+
+    def kill_first_actor(line: dict) -> None:
+        if not killed:
+            killed.append(int(line["worker"].rsplit(":", 1)[1]))
+            os.kill(killed[0], signal.SIGKILL)
+
+    result = render_job(job, tmp_path / "out", ray=True, chunk=2, progress=False, on_frame=kill_first_actor)
+    assert result.rendered == 16 and result.lost > 0
+    expected = sequential_images(tmp_path / "scene.yaml", orbit_cameras(16), size=(320, 240))
+    assert differing([tmp_path / "out" / "exact" / f"{i:05d}.png" for i in range(16)], expected) == []
 
 
 def test_video_per_variant(tmp_path):
