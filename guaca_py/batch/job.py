@@ -109,7 +109,7 @@ class Job:
     video: bool = False
     fps: float = 24.0
     scene_names: list[str] = field(default_factory=list)
-    png_level: int = 1  # 1 encodes a 1024² frame ~5x faster than 6 (FrameResult.save's) for ~12% more bytes
+    png_level: int = 1  # 1 encodes a 1024² dragons frame 4.4x faster than 6 (FrameResult.save's) for 13% more bytes
 
     @property
     def file(self) -> str:
