@@ -10,7 +10,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
     b = sub.add_parser("batch", help="render every frame of a job (camera path, variants) on local workers or Ray")
     b.add_argument("job", help="job YAML (scene, frames, camera path, variants; see docs/cluster.md)")
     b.add_argument("--out", required=True, help="output folder: <variant>/<frame>.png and manifest.jsonl")
-    b.add_argument("--workers", type=int, help="worker processes (default: one per GPU; 1 on a software rasterizer)")
+    b.add_argument(
+        "--workers", type=int, help="workers (default: one per GPU; without GPUs 1 locally, one per CPU on Ray)"
+    )
     b.add_argument(
         "--ray",
         nargs="?",

@@ -46,6 +46,7 @@ import hashlib
 import json
 import math
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -225,7 +226,9 @@ def _variant(r: _Reader, value: Any, path: tuple, base: Path) -> Variant:
     given = value.get("set") or {}
     if not isinstance(given, dict):
         raise r.error(path + ("set",), f"expected a mapping of settings, got {given!r}", "e.g. {threshold: 0.95}")
-    pipeline, overrides = apply_set(pipeline, method, given, lambda key: (r, path + ("set", key)))
+    pipeline, overrides = apply_set(
+        pipeline, method, given, lambda key, e: r.error(path + ("set", key), e.reason, e.hint)
+    )
     refusal = method_refusal(METHODS.get(method or pipeline.transparency["method"]), pipeline.antialiasing["samples"])
     if refusal:
         raise r.error(path, refusal)
@@ -233,19 +236,20 @@ def _variant(r: _Reader, value: Any, path: tuple, base: Path) -> Variant:
     return Variant(name, pipeline, method, overrides, size)
 
 
-def apply_set(pipeline: PipelineConfig, method: str | None, given: dict, where) -> tuple[PipelineConfig, dict]:
+def apply_set(
+    pipeline: PipelineConfig, method: str | None, given: dict, cite: Callable[[str, ConfigError], ConfigError]
+) -> tuple[PipelineConfig, dict]:
     """The pipeline with `antialiasing.*` settings applied, and the transparency settings (like `--set`).
 
     The same split and the same checks as the command line's `--set KEY=VALUE`
-    (`antialiasing.with_settings`, `renderer.method_settings`); `where(key)` gives the
-    (_Reader, key path) a bad value is reported at.
+    (`antialiasing.with_settings`, `renderer.method_settings`); a bad value's error is passed
+    to `cite(key, error)`, which gives the error to raise (at the job file's line).
     """
     from ..renderer import method_settings
 
     mid = method or pipeline.transparency["method"]
     overrides = {}
     for key, value in given.items():
-        r, path = where(key)
         try:
             if key.startswith("antialiasing."):
                 pipeline = with_settings(pipeline, {key.removeprefix("antialiasing."): value}, "set")
@@ -254,7 +258,7 @@ def apply_set(pipeline: PipelineConfig, method: str | None, given: dict, where) 
             method_settings(mid, {}, {bare: value}, overrides_source="set")
             overrides[bare] = value
         except ConfigError as exc:
-            raise r.error(path, exc.reason, exc.hint) from None
+            raise cite(key, exc) from None
     return pipeline, overrides
 
 

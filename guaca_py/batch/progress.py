@@ -10,11 +10,6 @@ import sys
 import time
 
 
-def _duration(seconds: float) -> str:
-    s = int(round(seconds))
-    return f"{s} s" if s < 60 else f"{s // 60} min {s % 60:02d} s"
-
-
 class Progress:
     """Counts rendered frames against the job's total and reports them."""
 
@@ -43,6 +38,8 @@ class Progress:
 
     def line(self) -> str:
         """'frames 12/48, 3.1 frames/s, ETA 11 s'."""
+        from ..benchmarking.harness import _duration  # worded as the benchmarks' progress lines
+
         eta = self.eta()
         return f"frames {self.done}/{self.total}, {self.fps:.2f} frames/s, ETA {'?' if eta is None else _duration(eta)}"
 

@@ -133,7 +133,7 @@ class RayWorkers:
                 value = ray.get(ref)
             except self.errors as exc:
                 if wid in self.actors:
-                    events.append(("dead", wid, str(exc).strip().splitlines()[0] if str(exc).strip() else "died"))
+                    events.append(("dead", wid, str(exc).strip() or type(exc).__name__))
                     self._forget(wid)
                 continue
             except ray.exceptions.RayTaskError as exc:

@@ -83,3 +83,15 @@ def test_manifest_keeps_only_checked_frames(tmp_path):
 def test_chunks_stay_within_one_scene_and_variant():
     tasks = [Task(i, "s", "a" if i < 5 else "b", i, {}, {}, (1, 1), "", "") for i in range(9)]
     assert [[t.id for t in c] for c in chunks(tasks, 3)] == [[0, 1, 2], [3, 4], [5, 6, 7], [8]]
+
+
+def test_progress_counts_done_over_total_with_rate_and_eta():
+    from guaca_py.batch.progress import Progress
+
+    p = Progress(10, skipped=4, show=False)
+    assert p.eta() is None and p.line().endswith("ETA ?")
+    p.step()
+    p.step()
+    line = p.line()
+    assert line.startswith("frames 6/10, ") and " frames/s, ETA " in line
+    assert p.fps > 0 and p.eta() == pytest.approx(4 / p.fps, rel=0.05)  # the 4 left at the rate of the 2 rendered
