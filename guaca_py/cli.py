@@ -1,4 +1,4 @@
-"""Command line: `guaca render`, `guaca view`, `guaca info`, `guaca methods`."""
+"""Command line: `guaca render`, `guaca view`, `guaca batch`, `guaca info`, `guaca methods`."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ import os
 import sys
 
 from .args_check import check_method_option, check_render_args, parse_set_option
+from .batch.cli import add_parser as batch_parser
 from .errors import GuacaError
 
 
@@ -218,6 +219,7 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--frames", type=int, default=0, help="stop after N frames (0: until closed; headless: 1)")
     v.add_argument("--screenshot", help="save the last frame's pixels (the first, without --frames) to this PNG")
     v.set_defaults(fn=_cmd_view)
+    batch_parser(sub)  # `guaca batch`: options and run in guaca_py/batch/cli.py
     i = sub.add_parser("info", help="print the OpenGL device and its capabilities")
     i.add_argument("--json", action="store_true")
     i.set_defaults(fn=_cmd_info)
