@@ -42,9 +42,9 @@ def plain_loop(scene_path: Path | None, job, size: int, check: bool = True) -> d
     """
     from ..output import write_atomic
     from ..renderer import Renderer
-    from ..scene.files import load_any
     from ..scene.graph import Camera
     from ..scene.loader import demo_scene
+    from ..scene.loader import load as load_any
     from .plan import cameras
     from .worker import encode_png
 

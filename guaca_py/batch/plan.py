@@ -85,7 +85,7 @@ def self_contained(scene: Scene) -> Scene:
 
 def scene_payload(path: Path, name: str) -> ScenePayload:
     """Load a scene file (YAML, glTF or mesh) on the driver and pickle it for the workers."""
-    from ..scene.files import load_any
+    from ..scene.loader import load as load_any
 
     data = pickle.dumps(self_contained(load_any(path)), protocol=pickle.HIGHEST_PROTOCOL)
     return ScenePayload(name, data, hashlib.sha256(data).hexdigest())
