@@ -8,7 +8,7 @@ import os
 import sys
 
 from .args_check import check_outputs, check_render_args, check_view_args, parse_set_option
-from .errors import GuacaError
+from .errors import ConfigError, GuacaError
 from .output import recording_reads
 
 
@@ -64,6 +64,7 @@ def _cmd_render(args) -> int:
             frame.stats["timing"] = {"warmup": args.warmup, "frames": m.frames, "statistic": "median"}
         else:
             frame = renderer.render(scene, args.width, args.height)
+        check_outputs(args)  # and after it (materials and textures load on first use): both files, or neither
         # every file first, then the report: a reader that stops early (`| head -1`) loses lines, not files
         out = frame.save(args.out)
         if args.stats is not None:
@@ -107,17 +108,22 @@ def _cmd_view(args) -> int:
     scene = load_any(args.scene) if args.scene is not None else demo_scene()
     if args.screenshot is not None:  # again, after loading: not one of the files the scene read either
         check_writable(args.screenshot, "--screenshot", IMAGE_SUFFIXES)
-    viewer = run_viewer(
-        scene,
-        width=args.width,
-        height=args.height,
-        pipeline=args.pipeline,
-        method=args.method,
-        view=args.view,
-        headless=args.headless,
-        frames=args.frames,
-        screenshot=args.screenshot,
-    )
+    try:
+        viewer = run_viewer(
+            scene,
+            width=args.width,
+            height=args.height,
+            pipeline=args.pipeline,
+            method=args.method,
+            view=args.view,
+            headless=args.headless,
+            frames=args.frames,
+            screenshot=args.screenshot,
+        )
+    except ConfigError as exc:  # the viewer names its argument; here it came from the option
+        if exc.key != "screenshot":
+            raise
+        raise ConfigError(exc.reason, exc.file, exc.line, "--screenshot", exc.hint) from None
     for path in viewer.screenshots_taken:
         print(f"screenshot written to {path}")
     print(f"{viewer.frames} frames; " + " | ".join(viewer.status_lines()[:1]))
