@@ -187,9 +187,17 @@ def _cmd_methods(args) -> int:
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with guaca's error format: one line naming the argument, exit status 2 (no usage block)."""
+
+    def error(self, message: str):
+        """Print `error: PROG: MESSAGE (see PROG --help)` on stderr and exit 2."""
+        self.exit(2, f"error: {self.prog}: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the `guaca` command."""
-    p = argparse.ArgumentParser(prog="guaca", description="guaca_py: deferred shading with exact OIT")
+    p = _Parser(prog="guaca", description="guaca_py: deferred shading with exact OIT")
     sub = p.add_subparsers(dest="command", required=True)
     r = sub.add_parser("render", help="render a scene file (default: the built-in demo) to PNG")
     r.add_argument("scene", nargs="?", help="scene YAML, glTF or mesh file (default: built-in demo)")

@@ -337,6 +337,8 @@ def test_outputs_keep_modes_and_write_through_links(textured):
         (["view", "--headless", "--screenshot", "tex.png"], ["'--screenshot': is an input of this run"]),
         (["view", "--headless", "--screenshot", "/dev/null"], ["'--screenshot': is a character device"]),
         (["view", "--headless", "--pipeline", ""], ["--pipeline: the path is empty"]),
+        (["render", "--width", "abc"], ["guaca render: argument --width: invalid int value: 'abc'"]),
+        (["view", "--view", "nope"], ["guaca view: argument --view: invalid choice: 'nope'"]),
     ],
 )
 def test_bad_options_exit_2_naming_the_option(textured, args, needles):
@@ -367,14 +369,18 @@ def test_an_unreadable_material_folder_is_named(textured, capsys, monkeypatch):
     assert not (textured / "o.png").exists()
 
 
-INTERRUPT_RENDER = """
-import os, signal
-from guaca_py.renderer import Renderer
-def render(self, *a, **k):
-    os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C in the middle of the render
+INTERRUPT = """
+import importlib, os, signal
+def interrupted(*a, **k):
+    os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C in the middle of the command's work
     raise AssertionError("not interrupted")
-Renderer.render = render
+owner = importlib.import_module({module!r})
+*inner, last = {name!r}.split(".")
+for part in inner:
+    owner = getattr(owner, part)
+setattr(owner, last, interrupted)
 """
+
 
 SIGNAL_DURING_SAVE = """
 import os, signal, time
@@ -387,10 +393,22 @@ Image.Image.save = save
 """
 
 
-def test_ctrl_c_exits_130_with_one_line(textured):
-    r = guaca(*RUN, "--out", "o.png", cwd=textured, prelude=INTERRUPT_RENDER)
+@pytest.mark.parametrize(
+    "command,module,name",
+    [
+        ((*RUN, "--out", "o.png"), "guaca_py.renderer", "Renderer.render"),
+        (("view", "view.yaml", "--headless"), "guaca_py.viewer.window", "run_viewer"),
+        (("info",), "guaca_py.context", "probe_capabilities"),
+        (("methods",), "guaca_py.context", "probe_capabilities"),
+    ],
+    ids=["render", "view", "info", "methods"],
+)
+def test_ctrl_c_exits_130_with_one_line(textured, command, module, name):
+    """In every command: status 130, 'interrupted' and nothing else on stderr, no file written."""
+    before = snapshot(textured)
+    r = guaca(*command, cwd=textured, prelude=INTERRUPT.format(module=module, name=name))
     assert r.returncode == 130 and r.stderr == "interrupted\n", r.stderr
-    assert not (textured / "o.png").exists()
+    assert snapshot(textured) == before
 
 
 @pytest.mark.parametrize("sig,status,stderr", [("SIGTERM", -15, ""), ("SIGINT", 130, "interrupted\n")])
