@@ -6,6 +6,7 @@ import argparse
 import json
 import os
 import sys
+from typing import NoReturn
 
 from .args_check import check_outputs, check_render_args, check_view_args, parse_set_option
 from .errors import ConfigError, GuacaError
@@ -190,7 +191,7 @@ def _cmd_methods(args) -> int:
 class _Parser(argparse.ArgumentParser):
     """argparse with guaca's error format: one line naming the argument, exit status 2 (no usage block)."""
 
-    def error(self, message: str):
+    def error(self, message: str) -> NoReturn:
         """Print `error: PROG: MESSAGE (see PROG --help)` on stderr and exit 2."""
         self.exit(2, f"error: {self.prog}: {message} (see {self.prog} --help)\n")
 
@@ -245,7 +246,7 @@ INTERRUPTED_STATUS = 130
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point; returns the exit status (2 for bad input or device problems, 130 after Ctrl-C, 141 if stdout's reader left)."""
+    """Entry point; returns the exit status: 2 bad input or device, 130 after Ctrl-C, 141 if stdout's reader left."""
     try:
         status = _run(build_parser().parse_args(argv))
         sys.stdout.flush()  # a closed pipe shows here at the latest, not in the interpreter's exit
