@@ -6,10 +6,12 @@ import argparse
 import json
 import os
 import sys
+from typing import NoReturn
 
-from .args_check import check_method_option, check_render_args, parse_set_option
+from .args_check import check_method_option, check_outputs, check_render_args, check_view_args, parse_set_option
 from .batch.cli import add_parser as batch_parser
-from .errors import GuacaError
+from .errors import ConfigError, GuacaError
+from .output import recording_reads
 
 
 def _options_over_pipeline(args):
@@ -39,35 +41,37 @@ def _options_over_pipeline(args):
 
 
 def _cmd_render(args) -> int:
+    from .limits import check_resolution
     from .renderer import Renderer
     from .scene.loader import demo_scene, load
 
     check_render_args(args)
-    scene = load(args.scene) if args.scene else demo_scene()  # YAML, glTF or a mesh file
+    scene = load(args.scene) if args.scene is not None else demo_scene()  # YAML, glTF or a mesh file
     pipeline, overrides = _options_over_pipeline(args)
     renderer = Renderer(pipeline, method=args.method, method_overrides=overrides, material_paths=args.materials)
-    if args.frames > 1 or args.warmup:
-        from .benchmarking import measure
+    try:
+        width = renderer.config.resolution[0] if args.width is None else args.width
+        height = renderer.config.resolution[1] if args.height is None else args.height
+        given = args.width is not None or args.height is not None
+        check_resolution(renderer.caps.limits, width, height, "--width/--height" if given else "resolution")
+        check_outputs(args)  # again, before the render: every material, mesh and texture read so far is known
+        if args.frames > 1 or args.warmup:
+            from .benchmarking import measure
 
-        m = measure(
-            renderer,
-            scene,
-            renderer.config.resolution[0] if args.width is None else args.width,
-            renderer.config.resolution[1] if args.height is None else args.height,
-            args.warmup,
-            args.frames,
-        )
-        frame = m.last
-        for name, ms in m.pass_ms.items():
-            frame.stats["passes"][name]["ms"] = round(ms, 4)  # report medians
-        frame.stats["timing"] = {"warmup": args.warmup, "frames": m.frames, "statistic": "median"}
-    else:
-        frame = renderer.render(scene, args.width, args.height)
-    # every file first, then the report: a reader that stops early (`| head -1`) loses lines, not files
-    out = frame.save(args.out)
-    if args.stats:
-        frame.save_stats(args.stats)
-    renderer.release()
+            m = measure(renderer, scene, width, height, args.warmup, args.frames)
+            frame = m.last
+            for name, ms in m.pass_ms.items():
+                frame.stats["passes"][name]["ms"] = round(ms, 4)  # report medians
+            frame.stats["timing"] = {"warmup": args.warmup, "frames": m.frames, "statistic": "median"}
+        else:
+            frame = renderer.render(scene, args.width, args.height)
+        check_outputs(args)  # and after it (materials and textures load on first use): both files, or neither
+        # every file first, then the report: a reader that stops early (`| head -1`) loses lines, not files
+        out = frame.save(args.out)
+        if args.stats is not None:
+            frame.save_stats(args.stats)
+    finally:
+        renderer.release()
     s = frame.stats
     print(f"rendered {out} ({s['resolution'][0]}x{s['resolution'][1]}) on {s['device']}")
     timing = s.get("timing")
@@ -92,28 +96,37 @@ def _cmd_render(args) -> int:
         print(f"A-buffer pool grown and frame re-rendered {s['regrown']} time(s)")
     for w in s.get("warnings", []):
         print(f"WARNING: {w}", file=sys.stderr)
-    if args.stats:
+    if args.stats is not None:
         print(f"stats written to {args.stats}")
     return 0
 
 
 def _cmd_view(args) -> int:
+    from .output import IMAGE_SUFFIXES, check_writable
     from .scene.loader import demo_scene, load
     from .viewer.window import run_viewer
 
     check_method_option(args.method)
-    scene = load(args.scene) if args.scene else demo_scene()
-    viewer = run_viewer(
-        scene,
-        width=args.width,
-        height=args.height,
-        pipeline=args.pipeline,
-        method=args.method,
-        view=args.view,
-        headless=args.headless,
-        frames=args.frames,
-        screenshot=args.screenshot,
-    )
+    check_view_args(args)
+    scene = load(args.scene) if args.scene is not None else demo_scene()
+    if args.screenshot is not None:  # again, after loading: not one of the files the scene read either
+        check_writable(args.screenshot, "--screenshot", IMAGE_SUFFIXES)
+    try:
+        viewer = run_viewer(
+            scene,
+            width=args.width,
+            height=args.height,
+            pipeline=args.pipeline,
+            method=args.method,
+            view=args.view,
+            headless=args.headless,
+            frames=args.frames,
+            screenshot=args.screenshot,
+        )
+    except ConfigError as exc:  # the viewer names its argument; here it came from the option
+        if exc.key != "screenshot":
+            raise
+        raise ConfigError(exc.reason, exc.file, exc.line, "--screenshot", exc.hint) from None
     for path in viewer.screenshots_taken:
         print(f"screenshot written to {path}")
     print(f"{viewer.frames} frames; " + " | ".join(viewer.status_lines()[:1]))
@@ -184,9 +197,17 @@ def _cmd_methods(args) -> int:
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with guaca's error format: one line naming the argument, exit status 2 (no usage block)."""
+
+    def error(self, message: str) -> NoReturn:
+        """Print `error: PROG: MESSAGE (see PROG --help)` on stderr and exit 2."""
+        self.exit(2, f"error: {self.prog}: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the `guaca` command."""
-    p = argparse.ArgumentParser(prog="guaca", description="guaca_py: deferred shading with exact OIT")
+    p = _Parser(prog="guaca", description="guaca_py: deferred shading with exact OIT")
     sub = p.add_subparsers(dest="command", required=True)
     r = sub.add_parser("render", help="render a scene file (default: the built-in demo) to PNG")
     r.add_argument("scene", nargs="?", help="scene YAML, glTF or mesh file (default: built-in demo)")
@@ -230,10 +251,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 #: exit status when the reader of stdout went away: 128 + SIGPIPE, as a shell reports a writer killed by it
 BROKEN_PIPE_STATUS = 141
+#: exit status after Ctrl-C: 128 + SIGINT, as a shell reports a command it interrupted
+INTERRUPTED_STATUS = 130
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point; returns the exit status (2 for bad input or device problems, 141 if stdout's reader left)."""
+    """Entry point; returns the exit status: 2 bad input or device, 130 after Ctrl-C, 141 if stdout's reader left."""
     try:
         status = _run(build_parser().parse_args(argv))
         sys.stdout.flush()  # a closed pipe shows here at the latest, not in the interpreter's exit
@@ -241,6 +264,9 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # `guaca render | head -1`: the files are written, the rest of the report has no reader
         _discard_stdout()
         return BROKEN_PIPE_STATUS
+    except KeyboardInterrupt:  # no traceback: a file being written was removed or left as it was (output.py)
+        print("interrupted", file=sys.stderr)
+        return INTERRUPTED_STATUS
 
 
 def _discard_stdout() -> None:
@@ -255,13 +281,19 @@ def _discard_stdout() -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    """Run the parsed command; errors of input or device become a message and exit status 2."""
+    """Run the parsed command; errors of input or device become a message and exit status 2.
+
+    The command runs while the files it reads are recorded, so none of its outputs can replace one.
+    """
     try:
-        return args.fn(args)
+        with recording_reads():
+            return args.fn(args)
     except GuacaError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    except FileNotFoundError as exc:
+    except OSError as exc:  # a file the input names cannot be read (missing, permissions, too long a path)
+        if isinstance(exc, BrokenPipeError):  # stdout's reader went away: main's concern, not an input's
+            raise
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except Exception as exc:

@@ -200,7 +200,10 @@ def write_video(out: Path, rel: str, tasks: list[Task], fps: float) -> Path:
     size = tasks[0].size
 
     def write(tmp: Path) -> None:
-        frames = imageio_ffmpeg.write_frames(str(tmp), size, fps=fps, macro_block_size=1, output_params=["-y"])
+        # the temporary file has no .mp4 suffix to infer the container from: name it
+        frames = imageio_ffmpeg.write_frames(
+            str(tmp), size, fps=fps, macro_block_size=1, output_params=["-y", "-f", "mp4"]
+        )
         frames.send(None)
         try:
             for t in tasks:
