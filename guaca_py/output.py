@@ -187,6 +187,11 @@ class ReadLog:
     def __init__(self) -> None:
         self.paths: set[str] = set()
         self.labels: dict[str, str] = {}
+        self.own: set[str] = set()  # folders of the run's own outputs (each ending in a separator)
+
+    def own_folder(self, path: str | Path) -> None:
+        """Files under `path` are the run's own outputs: reading them back (a resumed batch job) makes no input."""
+        self.own.add(os.path.join(os.path.abspath(path), ""))
 
     def label(self, path: str | Path | None, what: str) -> None:
         """Name an input the run will read (e.g. 'the scene file'): refused as an output even before it is opened."""
@@ -219,7 +224,9 @@ def _audit(event: str, args: tuple) -> None:
     if isinstance(path, int) or path is None or flags & (os.O_WRONLY | os.O_RDWR):
         return
     with suppress(TypeError, ValueError):
-        _logs[-1].paths.add(os.path.abspath(os.fsdecode(path)))
+        log, full = _logs[-1], os.path.abspath(os.fsdecode(path))
+        if not any(full.startswith(folder) for folder in log.own):
+            log.paths.add(full)
 
 
 @contextmanager

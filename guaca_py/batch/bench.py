@@ -52,17 +52,22 @@ def plain_loop(scene_path: Path | None, job, size: int, check: bool = True) -> d
     scene = load_any(scene_path) if scene_path else demo_scene()
     cams = cameras(job, scene)
     r = Renderer("default")
-    times, digests, images = [], [], []
+    times, digests, images, first_pass, run_to_run = [], [], [], [], 0
     try:
-        for cam in cams:  # timed: nothing but the frames
+        for cam in cams:  # timed: nothing but the frames (each read back, as the loop's images)
             scene.camera = Camera(**cam)
             frame = r.render(scene, size, size)
             times.append(time.perf_counter())
+            if check:
+                first_pass.append(frame.image)
         device, timer = frame.stats["device"], frame.stats["timer"]
         for i, cam in enumerate(cams if check else []):  # again, untimed: what each image must be
             scene.camera = Camera(**cam)
             image = r.render(scene, size, size).image
             digests.append(_pixels_digest(image))
+            # the same frame twice: a GPU's fragment order varies, and early termination with it
+            run_to_run = max(run_to_run, int(np.abs(image.astype(int) - first_pass[i].astype(int)).max()))
+            first_pass[i] = image
             if i < 8:
                 images.append(image)
     finally:
@@ -88,6 +93,8 @@ def plain_loop(scene_path: Path | None, job, size: int, check: bool = True) -> d
         "fps": n / (times[-1] - t0),
         "steady_fps": (n - 1) / (times[-1] - times[0]) if n > 1 else None,
         "digests": digests,
+        "reference": first_pass,  # the check pass's images (not written to JSON)
+        "run_to_run_max_diff": run_to_run if check else None,
         **(
             {
                 "png_encode_ms": {level: 1e3 * statistics.median(t) for level, t in encode.items()},
@@ -100,7 +107,7 @@ def plain_loop(scene_path: Path | None, job, size: int, check: bool = True) -> d
     }
 
 
-def batch_run(job, workers: int, expected: list[str]) -> dict:
+def batch_run(job, workers: int, expected: list[str], reference: list | None = None) -> dict:
     """One `render_job` of the job with `workers` local workers into a fresh folder; its rates and whether it matches."""
     from PIL import Image
 
@@ -115,11 +122,22 @@ def batch_run(job, workers: int, expected: list[str]) -> dict:
         )
         wall = time.perf_counter() - t0
         lines = [json.loads(t) for t in (out / "manifest.jsonl").read_text().splitlines()]
-        got = {
-            line["frame"]: _pixels_digest(np.asarray(Image.open(out / line["file"]).convert("RGB"))) for line in lines
-        }
+        pixels = {line["frame"]: np.asarray(Image.open(out / line["file"]).convert("RGB")) for line in lines}
+        got = {i: _pixels_digest(img) for i, img in pixels.items()}
+        mismatched = [i for i, d in enumerate(expected) if got.get(i) != d]
+        max_diff = (
+            max(
+                (
+                    int(np.abs(pixels[i].astype(int) - reference[i].astype(int)).max())
+                    for i in mismatched
+                    if i in pixels
+                ),
+                default=0,
+            )
+            if reference
+            else None
+        )
     n = len(stamps)
-    mismatched = [i for i, d in enumerate(expected) if got.get(i) != d]
     return {
         "workers": workers,
         "frames": result.rendered,
@@ -129,6 +147,7 @@ def batch_run(job, workers: int, expected: list[str]) -> dict:
         "steady_fps": (n - 1) / (stamps[-1] - stamps[0]) if n > 1 and stamps[-1] > stamps[0] else None,
         "identical": not mismatched,
         "mismatched_frames": mismatched,
+        "max_diff": max_diff,  # in 1/255, against the plain loop's images
     }
 
 
@@ -190,11 +209,23 @@ def markdown(rec: dict) -> str:
     ]
     for b in rec["batch"]:
         rel = b["steady_fps"] / p["steady_fps"] if b["steady_fps"] else float("nan")
-        same = "identical" if b["identical"] else f"{len(b['mismatched_frames'])} differ"
+        same = (
+            "identical"
+            if b["identical"]
+            else f"{len(b['mismatched_frames'])} differ, by at most {b.get('max_diff')}/255"
+        )
         lines.append(
             f"| batch, {b['workers']} worker(s) | {b['steady_fps']:.2f} | {b['fps']:.2f} | {b['first_frame_s']:.2f} "
             f"| {rel:.3f} | {same} |"
         )
+    if p.get("run_to_run_max_diff") is not None:
+        lines += [
+            "",
+            f"The plain loop's own images, the same frame rendered twice, differ by at most "
+            f"{p['run_to_run_max_diff']}/255: on a GPU the order in which fragments reach the A-buffer changes "
+            "from run to run, and with it which ones early termination drops behind the threshold. The batch "
+            "counts as matching when it is identical or, on a GPU, within the larger of that bound and 1/255.",
+        ]
     lines += [
         "",
         "Per frame on one thread of this machine: PNG encoding "
@@ -250,17 +281,21 @@ def main(argv: list[str] | None = None) -> int:
             plains.append(p)
             print(f"  plain loop: {p['steady_fps']:.2f} frames/s, first frame {p['first_frame_s']:.2f} s", flush=True)
             for w in args.workers:
-                b = batch_run(job, w, plains[0]["digests"])
+                b = batch_run(job, w, plains[0]["digests"], plains[0]["reference"])
                 batches[w].append(b)
                 print(
                     f"  batch, {w} worker(s): {b['steady_fps']:.2f} frames/s steady, {b['fps']:.2f} whole call, "
-                    f"first frame {b['first_frame_s']:.2f} s, images {'identical' if b['identical'] else 'DIFFER'}",
+                    f"first frame {b['first_frame_s']:.2f} s, images "
+                    + ("identical" if b["identical"] else f"differ by at most {b['max_diff']}/255"),
                     flush=True,
                 )
     plain = _medians(plains)
     runs = [_medians(batches[w]) for w in args.workers]
+    bound = max(1, plains[0]["run_to_run_max_diff"] or 0) if plain["timer"] == "gpu" else 0
     for w, r in zip(args.workers, runs):
         r["identical"] = all(b["identical"] for b in batches[w])
+        r["max_diff"] = max((b["max_diff"] or 0) for b in batches[w])
+        r["matches"] = r["max_diff"] <= bound
     rec = {
         "command": f"python -m guaca_py.batch.bench {shlex.join(argv)}".rstrip(),
         "scene": scene.stem,
@@ -269,7 +304,7 @@ def main(argv: list[str] | None = None) -> int:
         "cpus": os.cpu_count(),
         "load_before": load_before,
         "repeat": args.repeat,
-        "plain": {k: v for k, v in plain.items() if k != "digests"},
+        "plain": {k: v for k, v in plain.items() if k not in ("digests", "reference")},
         "batch": runs,
     }
     if args.ray:
@@ -282,7 +317,7 @@ def main(argv: list[str] | None = None) -> int:
     (out / "batch.json").write_text(json.dumps({"device": plain["device"], **rec}, indent=1))
     (out / "batch.md").write_text(markdown(rec))
     print(f"written: {out / 'batch.md'}, {out / 'batch.json'}")
-    return 0 if all(b["identical"] for b in runs) else 1
+    return 0 if all(b["matches"] for b in runs) else 1
 
 
 if __name__ == "__main__":

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import ConfigError, GuacaError
+from ..output import active_reads
 from .job import Job, load_job
 from .plan import Task, plan, scene_payload, video_groups
 from .progress import Progress
@@ -109,6 +110,9 @@ def render_job(
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise ConfigError("is a file, not a folder", out, key="--out", hint="give a folder for the frames")
+    log = active_reads()
+    if log is not None:  # the manifest and images a rerun reads back are this job's own, not its inputs
+        log.own_folder(out)
     lock = FolderLock(out)
     lock.acquire()
     try:

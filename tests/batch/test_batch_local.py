@@ -38,6 +38,9 @@ def test_turntable_of_48_frames_on_2_workers_equals_the_plain_loop(tmp_path, cap
     assert lines[0]["fragments_stored"] > 0  # from the front; from behind the opaque wall hides the panes
     expected = sequential_images(tmp_path / "scene.yaml", orbit_cameras(48))
     assert differing([out / "exact" / f"{i:05d}.png" for i in range(48)], expected) == []  # byte for byte
+    # a rerun through the command reads its own manifest and images back: they are no inputs to protect
+    assert main(["batch", str(job), "--out", str(out), "--workers", "2", "--no-progress"]) == 0
+    assert "0 frames rendered, 48 already there, of 48" in capsys.readouterr().out
 
 
 def test_a_killed_worker_loses_no_frame_and_a_rerun_writes_nothing(tmp_path):

@@ -55,9 +55,23 @@ def test_tables_hold_exact_methods_measured_on_every_scene():
     assert one.ranking() == [("x", 1.0), ("y", pytest.approx(2.0**0.5))]
 
 
+def _llvmpipe(caps):
+    """The capabilities of Mesa's llvmpipe (as CI's machines report them), on this machine's limits."""
+    return dataclasses.replace(
+        caps,
+        gl_renderer="llvmpipe (LLVM 15.0.6, 256 bits)",
+        vendor="Mesa",
+        atomic_int64=False,
+        fragment_interlock=False,
+        conservative_raster=False,
+        software=True,
+    )
+
+
 def test_devices_get_their_table(caps):
+    caps = _llvmpipe(caps)  # whichever device runs the suite
     llvmpipe, measured = auto.table_for(caps)
-    assert (llvmpipe.name, measured) == ("llvmpipe", True) and "llvmpipe" in caps.gl_renderer
+    assert (llvmpipe.name, measured) == ("llvmpipe", True)
     mid, why = auto.choose(caps)
     assert mid == llvmpipe.ranking()[0][0] and why.startswith("fastest exact method measured on llvmpipe:")
     # NVIDIA: the sorted lock-free A-buffer with early termination (fastest or within 6 % on Table 1's scenes)
