@@ -5,10 +5,14 @@ from .errors import ConfigError, DeviceError, GuacaError, ShaderCompileError, Un
 from .pipeline.config import PipelineConfig, load_pipeline, pipeline_from_text
 from .pipeline.frame import FrameResult
 from .renderer import Renderer
+from .scene.graph import Scene
+from .scene.loader import load
 
 __version__ = "0.1.0"
 __all__ = [
     "Renderer",
+    "Scene",
+    "load",
     "FrameResult",
     "PipelineConfig",
     "load_pipeline",

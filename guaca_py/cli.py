@@ -1,4 +1,4 @@
-"""Command line: `guaca render`, `guaca view`, `guaca info`, `guaca methods`."""
+"""Command line: `guaca render`, `guaca view`, `guaca batch`, `guaca info`, `guaca methods`."""
 
 from __future__ import annotations
 
@@ -6,9 +6,12 @@ import argparse
 import json
 import os
 import sys
+from typing import NoReturn
 
-from .args_check import check_method_option, check_render_args, parse_set_option
-from .errors import GuacaError
+from .args_check import check_method_option, check_outputs, check_render_args, check_view_args, parse_set_option
+from .batch.cli import add_parser as batch_parser
+from .errors import ConfigError, GuacaError
+from .output import recording_reads
 
 
 def _options_over_pipeline(args):
@@ -38,41 +41,44 @@ def _options_over_pipeline(args):
 
 
 def _cmd_render(args) -> int:
+    from .limits import check_resolution
     from .renderer import Renderer
-    from .scene.files import load_any
-    from .scene.loader import demo_scene
+    from .scene.loader import demo_scene, load
 
     check_render_args(args)
-    scene = load_any(args.scene) if args.scene else demo_scene()  # YAML, glTF or a mesh file
+    scene = load(args.scene) if args.scene is not None else demo_scene()  # YAML, glTF or a mesh file
     pipeline, overrides = _options_over_pipeline(args)
     renderer = Renderer(pipeline, method=args.method, method_overrides=overrides, material_paths=args.materials)
-    if args.frames > 1 or args.warmup:
-        from .benchmarking import measure
+    try:
+        width = renderer.config.resolution[0] if args.width is None else args.width
+        height = renderer.config.resolution[1] if args.height is None else args.height
+        given = args.width is not None or args.height is not None
+        check_resolution(renderer.caps.limits, width, height, "--width/--height" if given else "resolution")
+        check_outputs(args)  # again, before the render: every material, mesh and texture read so far is known
+        if args.frames > 1 or args.warmup:
+            from .benchmarking import measure
 
-        m = measure(
-            renderer,
-            scene,
-            renderer.config.resolution[0] if args.width is None else args.width,
-            renderer.config.resolution[1] if args.height is None else args.height,
-            args.warmup,
-            args.frames,
-        )
-        frame = m.last
-        for name, ms in m.pass_ms.items():
-            frame.stats["passes"][name]["ms"] = round(ms, 4)  # report medians
-        frame.stats["timing"] = {"warmup": args.warmup, "frames": m.frames, "statistic": "median"}
-    else:
-        frame = renderer.render(scene, args.width, args.height)
-    # every file first, then the report: a reader that stops early (`| head -1`) loses lines, not files
-    out = frame.save(args.out)
-    if args.stats:
-        frame.save_stats(args.stats)
-    renderer.release()
+            m = measure(renderer, scene, width, height, args.warmup, args.frames)
+            frame = m.last
+            for name, ms in m.pass_ms.items():
+                frame.stats["passes"][name]["ms"] = round(ms, 4)  # report medians
+            frame.stats["timing"] = {"warmup": args.warmup, "frames": m.frames, "statistic": "median"}
+        else:
+            frame = renderer.render(scene, args.width, args.height)
+        check_outputs(args)  # and after it (materials and textures load on first use): both files, or neither
+        # every file first, then the report: a reader that stops early (`| head -1`) loses lines, not files
+        out = frame.save(args.out)
+        if args.stats is not None:
+            frame.save_stats(args.stats)
+    finally:
+        renderer.release()
     s = frame.stats
     print(f"rendered {out} ({s['resolution'][0]}x{s['resolution'][1]}) on {s['device']}")
     timing = s.get("timing")
     how = f", median of {timing['frames']} frames after {timing['warmup']} warm-up" if timing else ", one frame"
     print(f"method {s['method']} ({s['insertion_path']} insertion), timer: {s['timer']}{how}")
+    if s.get("method_auto"):
+        print(f"  (method: auto) {s['method_auto']}")
     for name, p in s["passes"].items():
         print(f"  {name:<14} {p['ms']:10.3f} ms")
     ra = s.get("raster")
@@ -90,29 +96,37 @@ def _cmd_render(args) -> int:
         print(f"A-buffer pool grown and frame re-rendered {s['regrown']} time(s)")
     for w in s.get("warnings", []):
         print(f"WARNING: {w}", file=sys.stderr)
-    if args.stats:
+    if args.stats is not None:
         print(f"stats written to {args.stats}")
     return 0
 
 
 def _cmd_view(args) -> int:
-    from .scene.files import load_any
-    from .scene.loader import demo_scene
+    from .output import IMAGE_SUFFIXES, check_writable
+    from .scene.loader import demo_scene, load
     from .viewer.window import run_viewer
 
     check_method_option(args.method)
-    scene = load_any(args.scene) if args.scene else demo_scene()
-    viewer = run_viewer(
-        scene,
-        width=args.width,
-        height=args.height,
-        pipeline=args.pipeline,
-        method=args.method,
-        view=args.view,
-        headless=args.headless,
-        frames=args.frames,
-        screenshot=args.screenshot,
-    )
+    check_view_args(args)
+    scene = load(args.scene) if args.scene is not None else demo_scene()
+    if args.screenshot is not None:  # again, after loading: not one of the files the scene read either
+        check_writable(args.screenshot, "--screenshot", IMAGE_SUFFIXES)
+    try:
+        viewer = run_viewer(
+            scene,
+            width=args.width,
+            height=args.height,
+            pipeline=args.pipeline,
+            method=args.method,
+            view=args.view,
+            headless=args.headless,
+            frames=args.frames,
+            screenshot=args.screenshot,
+        )
+    except ConfigError as exc:  # the viewer names its argument; here it came from the option
+        if exc.key != "screenshot":
+            raise
+        raise ConfigError(exc.reason, exc.file, exc.line, "--screenshot", exc.hint) from None
     for path in viewer.screenshots_taken:
         print(f"screenshot written to {path}")
     print(f"{viewer.frames} frames; " + " | ".join(viewer.status_lines()[:1]))
@@ -121,13 +135,19 @@ def _cmd_view(args) -> int:
 
 def _cmd_info(args) -> int:
     from .context import probe_capabilities
+    from .methods import auto
     from .raster.choice import device_rule, order_rule
 
     caps = probe_capabilities()  # released again: the caller's current context stays current
     d = caps.as_dict()
+    method_auto, method_why = auto.choose(caps)
     if args.json:
         info = dict(
-            d, insertion_path=caps.insertion_path, raster_auto=device_rule(caps), raster_order_auto=order_rule()
+            d,
+            insertion_path=caps.insertion_path,
+            raster_auto=device_rule(caps),
+            raster_order_auto=order_rule(),
+            method_auto={"method": method_auto, "why": method_why},
         )
         print(json.dumps(info, indent=2))
         return 0
@@ -146,6 +166,7 @@ def _cmd_info(args) -> int:
         f"A-buffer insertion path: {caps.insertion_path} "
         f"({'64-bit atomicMax on (depth, pointer)' if caps.insertion_path == '64bit' else '32-bit CAS on immutable nodes'})"
     )
+    print(f"transparency method (method: auto): {method_auto}, {method_why}")
     print(f"transparent raster (raster: auto): {device_rule(caps)}")
     print(f"compute triangle order (raster_order: auto): {order_rule()}")
     return 0
@@ -176,14 +197,22 @@ def _cmd_methods(args) -> int:
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with guaca's error format: one line naming the argument, exit status 2 (no usage block)."""
+
+    def error(self, message: str) -> NoReturn:
+        """Print `error: PROG: MESSAGE (see PROG --help)` on stderr and exit 2."""
+        self.exit(2, f"error: {self.prog}: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the `guaca` command."""
-    p = argparse.ArgumentParser(prog="guaca", description="guaca_py: deferred shading with exact OIT")
+    p = _Parser(prog="guaca", description="guaca_py: deferred shading with exact OIT")
     sub = p.add_subparsers(dest="command", required=True)
     r = sub.add_parser("render", help="render a scene file (default: the built-in demo) to PNG")
     r.add_argument("scene", nargs="?", help="scene YAML, glTF or mesh file (default: built-in demo)")
     r.add_argument("--pipeline", default="default", help="pipeline YAML or built-in name (default, exact)")
-    r.add_argument("--method", help="transparency method id (see `guaca methods`)")
+    r.add_argument("--method", help="transparency method id (see `guaca methods`), or auto: the fastest exact one here")
     r.add_argument(
         "--set",
         action="append",
@@ -203,7 +232,7 @@ def build_parser() -> argparse.ArgumentParser:
     v = sub.add_parser("view", help="look at a scene interactively (orbit/fly camera, method and debug-view keys)")
     v.add_argument("scene", nargs="?", help="scene YAML, glTF or mesh file (default: built-in demo)")
     v.add_argument("--pipeline", default="default", help="pipeline YAML or built-in name (default, exact)")
-    v.add_argument("--method", help="transparency method to start with (M / N keys switch)")
+    v.add_argument("--method", help="transparency method to start with, or auto (M / N keys switch)")
     v.add_argument("--view", default="shaded", choices=("shaded", "depth_complexity", "light_count"))
     v.add_argument("--width", type=int, default=1024)
     v.add_argument("--height", type=int, default=768)
@@ -211,6 +240,7 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--frames", type=int, default=0, help="stop after N frames (0: until closed; headless: 1)")
     v.add_argument("--screenshot", help="save the last frame's pixels (the first, without --frames) to this PNG")
     v.set_defaults(fn=_cmd_view)
+    batch_parser(sub)  # `guaca batch`: options and run in guaca_py/batch/cli.py
     i = sub.add_parser("info", help="print the OpenGL device and its capabilities")
     i.add_argument("--json", action="store_true")
     i.set_defaults(fn=_cmd_info)
@@ -221,10 +251,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 #: exit status when the reader of stdout went away: 128 + SIGPIPE, as a shell reports a writer killed by it
 BROKEN_PIPE_STATUS = 141
+#: exit status after Ctrl-C: 128 + SIGINT, as a shell reports a command it interrupted
+INTERRUPTED_STATUS = 130
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point; returns the exit status (2 for bad input or device problems, 141 if stdout's reader left)."""
+    """Entry point; returns the exit status: 2 bad input or device, 130 after Ctrl-C, 141 if stdout's reader left."""
     try:
         status = _run(build_parser().parse_args(argv))
         sys.stdout.flush()  # a closed pipe shows here at the latest, not in the interpreter's exit
@@ -232,6 +264,9 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # `guaca render | head -1`: the files are written, the rest of the report has no reader
         _discard_stdout()
         return BROKEN_PIPE_STATUS
+    except KeyboardInterrupt:  # no traceback: a file being written was removed or left as it was (output.py)
+        print("interrupted", file=sys.stderr)
+        return INTERRUPTED_STATUS
 
 
 def _discard_stdout() -> None:
@@ -246,13 +281,19 @@ def _discard_stdout() -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    """Run the parsed command; errors of input or device become a message and exit status 2."""
+    """Run the parsed command; errors of input or device become a message and exit status 2.
+
+    The command runs while the files it reads are recorded, so none of its outputs can replace one.
+    """
     try:
-        return args.fn(args)
+        with recording_reads():
+            return args.fn(args)
     except GuacaError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    except FileNotFoundError as exc:
+    except OSError as exc:  # a file the input names cannot be read (missing, permissions, too long a path)
+        if isinstance(exc, BrokenPipeError):  # stdout's reader went away: main's concern, not an input's
+            raise
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except Exception as exc:

@@ -2,7 +2,7 @@
 
 moderngl has no API for some of what guaca needs: capabilities such as NV conservative
 rasterization (passes/light_culling.py), the host's context state that host_state.py saves and
-restores, deletable queries (gpu_timer.py), persistently mapped read-back (gpu_counters.py) and
+restores, depth blits between a host's framebuffer and guaca's (present.py), deletable queries (gpu_timer.py), persistently mapped read-back (gpu_counters.py) and
 NVX memory info (limits.py). Those call GL directly through `raw_gl()`, whose functions dispatch
 to whatever context is current; host_state.py makes contexts current with the EGL/GLX libraries
 `load_library` opens.
@@ -51,6 +51,8 @@ _SIGNATURES = {
     "glGetError": (_u, []),
     "glClear": (None, [_u]),
     "glBindFramebuffer": (None, [_u, _u]),
+    # depth copies between a host's framebuffer and guaca's (guaca_py/present.py: moderngl blits colour only)
+    "glBlitNamedFramebuffer": (None, [_u, _u, _i, _i, _i, _i, _i, _i, _i, _i, _u, _u]),
     "glBindRenderbuffer": (None, [_u, _u]),
     "glViewport": (None, [_i, _i, _i, _i]),
     "glScissor": (None, [_i, _i, _i, _i]),

@@ -20,7 +20,10 @@ Storage that the rule caps degrades like any full pool: fragments are dropped, c
 
 from __future__ import annotations
 
+import operator
 from dataclasses import dataclass
+
+import numpy as np
 
 from . import env
 from .errors import LimitError
@@ -120,11 +123,26 @@ def query_limits(ctx, software: bool) -> DeviceLimits:
     )
 
 
-def check_resolution(limits: DeviceLimits | None, width, height, what: str = "--width/--height") -> tuple[int, int]:
-    """Validate a frame size against the device: positive integers, within render-target and buffer limits."""
-    for name, v in (("width", width), ("height", height)):
-        if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
-            raise LimitError(f"{name} must be a positive integer, got {v!r}", key=what, hint="e.g. 512")
+def _size(value, name: str, what: str | None) -> int:
+    """`value` as a positive Python int (numpy integers too), else a LimitError naming `what` or the argument."""
+    try:
+        v = operator.index(value)  # any integer type, never a float, a string or an array
+    except TypeError:
+        v = None
+    if v is None or isinstance(value, (bool, np.bool_)) or v <= 0:
+        reason = f"must be a positive integer, got {value!r}"
+        raise LimitError(reason if what is None else f"{name} {reason}", key=what or name, hint="e.g. 512")
+    return v
+
+
+def check_resolution(limits: DeviceLimits | None, width, height, what: str | None = None) -> tuple[int, int]:
+    """Validate a frame size against the device: positive integers, within render-target and buffer limits.
+
+    Errors name `what` (a command-line option, a pipeline key) where given, else the arguments
+    `width` and `height` of the Python call.
+    """
+    width, height = _size(width, "width", what), _size(height, "height", what)
+    what = what or "width/height"
     if limits is None:
         return width, height
     mw, mh = limits.max_framebuffer

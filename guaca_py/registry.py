@@ -78,6 +78,27 @@ METHODS = Registry("method", "id", "transparency method", "known")
 _KINDS = {"pass": PASSES, "method": METHODS}
 
 
+# `transparency.method: auto` names no registered method: the Renderer picks one of AUTO_CANDIDATES
+# on the device (guaca_py/methods/auto.py, which adds the ids its measured tables rank when imported)
+AUTO = "auto"
+AUTO_CANDIDATES: set[str] = set()
+
+
+def auto_settings_schema() -> dict:
+    """Settings `method: auto` accepts: those of any method it may pick (the one picked takes its own)."""
+    schema: dict = {}
+    for mid in sorted(AUTO_CANDIDATES):
+        for key, setting in METHODS.get(mid).settings_schema().items():
+            schema.setdefault(key, setting)
+    return schema
+
+
+def unknown_method(mid: str) -> tuple[str, str]:
+    """(reason, hint) for a transparency.method that is neither a method id nor 'auto'."""
+    reason, hint = METHODS.unknown(mid)
+    return reason, f"{hint}; or {AUTO} (the fastest exact method measured on the device)"
+
+
 def register(kind: str) -> Callable[[T], T]:
     """Decorator: register a pass class (kind 'pass', by its name) or a MethodSpec (kind 'method', by its id)."""
     if kind not in _KINDS:

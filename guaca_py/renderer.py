@@ -16,7 +16,7 @@ from .gpu_timer import TimerQuery
 from .host_state import ContextGuard, native, on_context
 from .limits import check_resolution
 from .materials import MaterialRegistry
-from .methods import method_class, require_method_id
+from .methods import auto, method_class, require_method_id
 from .pipeline.assemble import assemble
 from .pipeline.config import PipelineConfig, load_pipeline
 from .pipeline.device import Antialiasing, Device
@@ -25,8 +25,9 @@ from .pipeline.drawlist import build_draw_list
 from .pipeline.frame import FrameContext, FrameResult
 from .pipeline.retry import settle
 from .pipeline.settings import resolve_settings
-from .present import Presenter
+from .present import Presenter, host_target
 from .raster.router import RasterRouter
+from .scene.files import as_scene
 from .scene.graph import Scene
 from .shaders import ShaderLibrary
 
@@ -43,7 +44,7 @@ def method_settings(
     A bad override is reported under `overrides_source` (the argument or command-line option it
     came from), not under the pipeline file, which may hold no such value.
     """
-    schema = method_class(mid).settings_schema()
+    schema = auto.settings_schema() if mid == auto.AUTO else method_class(mid).settings_schema()
 
     def error(where):
         return lambda k, r, h: ConfigError(r, where, None, f"transparency.{k}", h)
@@ -54,6 +55,16 @@ def method_settings(
         out.update({k: checked[k] for k in overrides})
     out["method"] = mid
     return out
+
+
+def _image_and_linear(data: bytes, linear: bool, size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray | None]:
+    """RGBA pixels read from GL (row 0 at the bottom) as (uint8 image, float32 linear colour or None), row 0 at the top."""
+    w, h = size
+    if linear:
+        lin = np.frombuffer(data, dtype=np.float32).reshape(h, w, 4)[::-1, :, :3]
+        img = np.clip(np.rint(np.clip(lin, 0.0, 1.0) * 255.0), 0, 255).astype(np.uint8)
+        return np.ascontiguousarray(img), np.ascontiguousarray(lin)
+    return np.ascontiguousarray(np.frombuffer(data, dtype=np.uint8).reshape(h, w, 4)[::-1, :, :3]), None
 
 
 class Renderer:
@@ -158,8 +169,18 @@ class Renderer:
 
     @on_context
     def set_method(self, mid: str, overrides: dict | None = None) -> None:
-        """Switch the transparency method (settings shared with the config carry over)."""
+        """Switch the transparency method (settings shared with the config carry over).
+
+        `auto` picks the fastest exact method measured on this kind of device (methods/auto.py);
+        `method_auto` says which and why, and the frame stats repeat it.
+        """
         require_method_id(mid, "method")  # a pipeline file's method was checked with its line when read
+        self.method_auto = None
+        if mid == auto.AUTO:
+            method_settings(mid, {}, overrides)  # checked as settings of any method auto may pick
+            mid, self.method_auto = auto.choose(self.caps, self.samples)
+            taken = method_class(mid).settings_schema()
+            overrides = {k: v for k, v in (overrides or {}).items() if k in taken}
         cls = method_class(mid)
         reason = cls.unsupported_reason(self.caps)
         if reason:
@@ -212,6 +233,7 @@ class Renderer:
         *,
         target=None,
         viewport: tuple[int, int, int, int] | None = None,
+        over_target: bool = False,
         read_back: bool = True,
         stats: bool = True,
     ) -> FrameResult:
@@ -219,6 +241,14 @@ class Renderer:
 
         `target` is a moderngl Framebuffer (e.g. the host's screen) or Texture the frame is
         drawn into (scaled to `viewport`, default the whole target) without leaving the GPU.
+        `over_target=True` composes the frame with what the target already holds (a Framebuffer
+        with a colour and a depth attachment, the frame's size or a `viewport` of it): its depth,
+        made with this scene camera's matrices (`camera_matrices`), hides guaca's fragments behind
+        it; its colour is the background (the scene's is not drawn) and stays where nothing of
+        guaca covers it; guaca's opaque depth is written back into its depth attachment.
+        `FrameResult.image` is then the composed picture, read from the target's rectangle
+        (with `read_back=False`: as the target holds it when read); `FrameResult.texture` is
+        guaca's layer alone (premultiplied colour and coverage).
         With `read_back=False` nothing is copied to the CPU: `FrameResult.texture` holds the
         frame until the next render and `FrameResult.image` reads it on first access.
         `stats=False` skips per-pass timing (no timer queries or GPU syncs); the counters the
@@ -226,20 +256,22 @@ class Renderer:
         on a GPU, the per-pass times are the previous frame's (`stats["passes_of"]`), so reading
         them never waits for this frame.
         """
+        scene = as_scene(scene)  # a trimesh scene or mesh converts (once per content); anything else is named
         w, h = check_resolution(
             self.caps.limits,
             self.config.resolution[0] if width is None else width,
             self.config.resolution[1] if height is None else height,
         )
-        cam = scene.camera
+        host = host_target(target, w, h, viewport) if over_target else None  # refused before any work
         draws = build_draw_list(scene, self.materials, self.draw_cache)
         frame = FrameContext(
-            self.device, self.method, self.raster, scene, w, h, draws, cam.view_matrix(), cam.projection_matrix(w / h)
+            self.device, self.method, self.raster, scene, w, h, draws, *self.camera_matrices(scene, w, h)
         )
         frame.late_counters = not read_back
         frame.resources.enter(None)
         frame.resources["draw_list"] = draws
         frame.resources["lights"] = list(scene.lights)
+        frame.resources["host_layer"] = self.presenter.read_host_layer(host) if host is not None else None
         frame.stats.update(
             {
                 "method": self.method.id,
@@ -252,6 +284,8 @@ class Renderer:
                 "regrown": 0,
             }
         )
+        if self.method_auto is not None:
+            frame.stats["method_auto"] = self.method_auto
         t0 = time.perf_counter()
         timers = {}
         kind = "off"
@@ -309,11 +343,26 @@ class Renderer:
         self.frame_serial += 1
         tex = frame.resources.output
         if target is not None:
-            self.presenter.draw(tex, target, viewport)
-        result = FrameResult(None, dict(frame.stats), texture=tex, reader=self._reader(tex, self.frame_serial))
+            self.presenter.draw(tex, target, viewport, over=host is not None)
+        if host is not None:  # the host keeps drawing with guaca's opaque surfaces in its depth
+            self.presenter.write_host_depth(host, frame.resources["gbuffer"])
+        reader = self._reader(tex, self.frame_serial) if host is None else self._target_reader(host)
+        result = FrameResult(None, dict(frame.stats), texture=tex, reader=reader)
         if read_back:
             result.read()
         return result
+
+    @staticmethod
+    def camera_matrices(scene: Scene, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
+        """(view, projection) of the frame: 4x4 float64, row-major, for column vectors (clip = P @ V @ world).
+
+        OpenGL conventions: the camera looks down -Z, clip z in [-w, w], so with the default depth
+        range and clip control the depth buffer holds [0, 1]. A host drawing the opaque layer for
+        `render(..., over_target=True)` uses exactly these; a GLSL mat4 takes
+        `m.T.astype("f4").tobytes()` (GLSL matrices are column-major).
+        """
+        cam = scene.camera
+        return cam.view_matrix(), cam.projection_matrix(width / height)
 
     def _reader(self, tex, serial: int):
         """A function reading `tex` (the frame numbered `serial`) back as (image, linear or None)."""
@@ -325,13 +374,18 @@ class Renderer:
                     "this frame's texture was reused by a later render (or the renderer was released); "
                     "read frame.image before the next render, or render with read_back=True"
                 )
-            h, w = tex.height, tex.width
-            if tex.dtype == "f4":
-                lin = np.frombuffer(tex.read(), dtype=np.float32).reshape(h, w, 4)[::-1, :, :3]
-                img = np.clip(np.rint(np.clip(lin, 0.0, 1.0) * 255.0), 0, 255).astype(np.uint8)
-                return np.ascontiguousarray(img), np.ascontiguousarray(lin)
-            img = np.frombuffer(tex.read(), dtype=np.uint8).reshape(h, w, 4)[::-1, :, :3]
-            return np.ascontiguousarray(img), None
+            return _image_and_linear(tex.read(), tex.dtype == "f4", tex.size)
+
+        return lambda: read(self)
+
+    def _target_reader(self, host):
+        """A function reading the frame's rectangle of an over_target framebuffer: the composed picture."""
+
+        @on_context
+        def read(self) -> tuple[np.ndarray, np.ndarray | None]:
+            linear = host.fbo.color_attachments[0].dtype in ("f2", "f4")  # a float target holds linear values
+            data = host.fbo.read(viewport=host.viewport, components=4, dtype="f4" if linear else "f1")
+            return _image_and_linear(data, linear, host.viewport[2:])
 
         return lambda: read(self)
 
@@ -339,6 +393,7 @@ class Renderer:
     def _release_gpu(self) -> None:
         for p in self.passes:
             p.release()
+        self.presenter.release()
         self.method.release()
         self.raster.release()
         for q in self._queries.values():

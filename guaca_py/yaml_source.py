@@ -466,7 +466,7 @@ def read_text(
 MAX_CONFIG_BYTES = 1 << 20  # pipelines and material descriptions: a few KiB each
 
 
-def load_yaml_file(path: str | Path, max_depth: int = MAX_NESTING) -> Located:
-    """Read and parse a YAML file (missing, unreadable or not a regular file → ConfigError)."""
+def load_yaml_file(path: str | Path, max_depth: int = MAX_NESTING, max_bytes: int | None = None) -> Located:
+    """Read and parse a YAML file (missing, unreadable, too large or not a regular file → ConfigError)."""
     p = Path(path)
-    return load_yaml_text(read_text(p, max_bytes=MAX_CONFIG_BYTES), str(p), max_depth)
+    return load_yaml_text(read_text(p, max_bytes=max_bytes), str(p), max_depth)

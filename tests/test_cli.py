@@ -170,3 +170,272 @@ def test_a_reader_that_stops_early_ends_no_traceback(scene_file, tmp_path):
     p.stdout.close()
     err = p.stderr.read().decode()
     assert p.wait(timeout=120) == 141 and "Traceback" not in err, err
+
+
+# ---------------------------------------------------------------------------- bad options, lost files
+ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
+
+
+def guaca(*args, cwd, prelude: str = "", timeout: int = 120) -> subprocess.CompletedProcess:
+    """`guaca ARGS` in a child process (after `prelude`, Python run first in it): status, stdout, stderr."""
+    import os
+
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, (str(ROOT), os.environ.get("PYTHONPATH")))))
+    code = f"{prelude}\nimport sys\nfrom guaca_py.cli import main\nsys.exit(main(sys.argv[1:]))"
+    cmd = [sys.executable, "-c", code, *map(str, args)]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env, cwd=cwd)
+
+
+def one_error_line(r: subprocess.CompletedProcess, *needles: str) -> None:
+    """Exit 2 with one line on stderr, 'error: ...' holding every needle; never a traceback."""
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), r.stderr
+    for n in needles:
+        assert n in lines[0], f"{n!r} not in {lines[0]!r}"
+
+
+def snapshot(folder) -> dict:
+    """Every entry of `folder`: its type and, for regular files, the bytes (a changed or new file shows)."""
+    import os
+    import stat
+
+    out = {}
+    for p in sorted(folder.iterdir()):
+        st = os.lstat(p)
+        out[p.name] = (
+            stat.S_IFMT(st.st_mode),
+            p.read_bytes() if stat.S_ISREG(st.st_mode) else os.readlink(p) if p.is_symlink() else None,
+        )
+    return out
+
+
+@pytest.fixture()
+def textured(tmp_path):
+    """A scene with a texture and an OBJ mesh beside it, a pipeline and a material folder: the run's inputs."""
+    import shutil
+
+    from PIL import Image
+
+    Image.new("RGB", (4, 4), (200, 100, 50)).save(tmp_path / "tex.png")
+    (tmp_path / "tri.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    (tmp_path / "mats").mkdir()
+    shutil.copy(ROOT / "materials" / "unlit.json", tmp_path / "mats" / "flat.json")
+    flat = json.loads((tmp_path / "mats" / "flat.json").read_text())
+    flat["name"] = "flat"
+    (tmp_path / "mats" / "flat.json").write_text(json.dumps(flat))
+    shutil.copy(ROOT / "pipelines" / "default.yaml", tmp_path / "pipe.yaml")
+    (tmp_path / "scene.yaml").write_text(
+        SCENE + "  - {mesh: {primitive: quad, size: [1, 1]}, material: {description: pbr_textured, "
+        "uniforms: {albedo_map: tex.png}}}\n" + "  - {mesh: {file: tri.obj}, material: {description: flat}}\n"
+    )
+    (tmp_path / "view.yaml").write_text(  # the same without the folder's material: `guaca view` has no --materials
+        (tmp_path / "scene.yaml").read_text().replace("description: flat", "description: unlit")
+    )
+    return tmp_path
+
+
+#: a render of the fixture's scene with every input option
+RUN = ("render", "scene.yaml", "--pipeline", "pipe.yaml", "--materials", "mats", "--width", "16", "--height", "16")
+
+
+def test_the_scene_and_its_fixture_render(textured):
+    """The fixture is a valid run: what the next tests refuse is the output, not the input."""
+    r = guaca(
+        "render",
+        "scene.yaml",
+        "--pipeline",
+        "pipe.yaml",
+        "--materials",
+        "mats",
+        "--width",
+        "16",
+        "--height",
+        "16",
+        "--out",
+        "o.png",
+        "--stats",
+        "s.json",
+        cwd=textured,
+    )
+    assert r.returncode == 0, r.stderr
+    assert (textured / "o.png").is_file() and json.loads((textured / "s.json").read_text())["resolution"] == [16, 16]
+
+
+@pytest.mark.parametrize(
+    "outputs,needles",
+    [
+        (["--stats", "scene.yaml"], ["'--stats': is the scene file"]),
+        (["--stats", "./scene.yaml"], ["'--stats': is the scene file"]),
+        (["--stats", "pipe.yaml"], ["'--stats': is the pipeline file"]),
+        (["--stats", "mats/flat.json"], ["'--stats': is an input of this run", "flat.json"]),
+        (["--out", "tex.png"], ["'--out': is an input of this run", "tex.png"]),
+        (["--stats", "tri.obj"], ["'--stats': is an input of this run", "tri.obj"]),
+        (["--out", "o.png", "--stats", "o.png"], ["'--stats': names the same file as --out"]),
+        (["--out", "link.png"], ["'--out': is an input of this run"]),  # a link to the texture
+        (["--out", "fifo.png"], ["'--out': is a FIFO (named pipe)"]),
+        (["--stats", "to_fifo.json"], ["'--stats': is a FIFO (named pipe) (through a symbolic link)"]),
+        (["--stats", "dangling.json"], ["'--stats': is a symbolic link to a missing file"]),
+        (["--out", "dir.png"], ["'--out': is a directory"]),
+        (["--stats", "/dev/null"], ["'--stats': is a character device"]),  # only looked at
+        (["--out", "x" * 300 + ".png"], ["--out", "304 bytes", "at most 255"]),
+        (["--out", "d/" * 2100 + "o.png"], ["--out", "4205 bytes", "at most 4095"]),
+        (["--stats", ""], ["--stats: the path is empty"]),
+        (["--out", ""], ["--out: the path is empty"]),
+    ],
+    ids=lambda v: " ".join(x[:24] for x in v),
+)
+def test_an_output_never_replaces_an_input_or_a_special_file(textured, outputs, needles):
+    """Refused with exit 2 naming the option and the clash; the folder is exactly as it was."""
+    import os
+
+    os.mkfifo(textured / "fifo.png")
+    (textured / "to_fifo.json").symlink_to("fifo.png")
+    (textured / "dangling.json").symlink_to("missing.json")
+    (textured / "link.png").symlink_to("tex.png")
+    (textured / "dir.png").mkdir()
+    before = snapshot(textured)
+    r = guaca(*RUN, *outputs, cwd=textured)
+    one_error_line(r, *needles)
+    assert snapshot(textured) == before and "rendered" not in r.stdout
+
+
+def test_outputs_keep_modes_and_write_through_links(textured):
+    """A replaced image keeps its mode; --stats through a link replaces the link's target, the link stays."""
+    import os
+    import stat
+
+    (textured / "o.png").write_bytes(b"old")
+    (textured / "o.png").chmod(0o640)
+    (textured / "data").mkdir()
+    (textured / "data" / "s.json").write_text("{}")
+    (textured / "s.json").symlink_to("data/s.json")
+    name = "n" * 246 + ".png"  # a name the old temporary (.NAME.XXXX.tmp.png) made too long
+    for out in ("o.png", name):
+        r = guaca(*RUN, "--out", out, "--stats", "s.json", cwd=textured)
+        assert r.returncode == 0, r.stderr
+    assert stat.S_IMODE(os.stat(textured / "o.png").st_mode) == 0o640
+    assert (textured / "o.png").read_bytes().startswith(b"\x89PNG") and (textured / name).is_file()
+    assert (textured / "s.json").is_symlink() and json.loads((textured / "data" / "s.json").read_text())["passes"]
+    assert not [p for p in os.listdir(textured) if p.startswith(".")]  # no temporary left
+
+
+@pytest.mark.parametrize(
+    "args,needles",
+    [
+        (["render", ""], ["'scene': the path is empty"]),  # was: the demo rendered, exit 0
+        (["render", "--pipeline", ""], ["--pipeline: the path is empty"]),  # was: '.: file not found'
+        (["render", "--materials", ""], ["--materials: the path is empty"]),  # was: the current folder
+        (["render", "--set", "budget_mb=.inf"], ["--set budget_mb=.inf: '.inf' is not a finite number"]),
+        (["render", "--set", "threshold=.nan"], ["--set threshold=.nan: '.nan' is not a finite number"]),
+        (["render", "--set", "max_steps=99999999999999999999"], ["--set max_steps=99999999999999999999", "32-bit"]),
+        (["view", "--headless", "--width", "0"], ["--width: must be >= 1, got 0"]),  # was: cannot open a window
+        (["view", "--headless", "--height", "-3"], ["--height: must be >= 1, got -3"]),
+        (["view", "--headless", "--frames", "-1"], ["--frames: must be >= 0"]),
+        (["view", "--headless", "--screenshot", "shot"], ["'--screenshot': cannot tell the image format"]),
+        (["view", "--headless", "--screenshot", "scene.yaml"], ["'--screenshot'", "from '.yaml'"]),
+        (["view", "--headless", "--screenshot", "tex.png"], ["'--screenshot': is an input of this run"]),
+        (["view", "--headless", "--screenshot", "/dev/null"], ["'--screenshot': is a character device"]),
+        (["view", "--headless", "--pipeline", ""], ["--pipeline: the path is empty"]),
+        (["render", "--width", "abc"], ["guaca render: argument --width: invalid int value: 'abc'"]),
+        (["view", "--view", "nope"], ["guaca view: argument --view: invalid choice: 'nope'"]),
+    ],
+)
+def test_bad_options_exit_2_naming_the_option(textured, args, needles):
+    """Each in a child process: one line, exit 2, and no file written (no out.png from a demo render)."""
+    if args[0] == "view" and "tex.png" in args:
+        # the texture is read while the viewer renders its first frame: that takes the viewer extra
+        pytest.importorskip("moderngl_window", reason="guaca view needs the viewer extra (moderngl-window)")
+        args = [*args[:1], "view.yaml", *args[1:]]
+    before = snapshot(textured)
+    one_error_line(guaca(*args, cwd=textured), *needles)
+    assert snapshot(textured) == before
+
+
+def test_an_unreadable_material_folder_is_named(textured, capsys, monkeypatch):
+    """Not 'unknown material' later on: the folder and why (root reads any folder, so the refusal is simulated)."""
+    import os
+
+    real = os.listdir
+    monkeypatch.chdir(textured)
+
+    def listdir(path="."):
+        if os.path.abspath(path) == str(textured / "mats"):
+            raise PermissionError(13, "Permission denied", str(path))
+        return real(path)
+
+    monkeypatch.setattr(os, "listdir", listdir)
+    assert main(["render", "scene.yaml", "--materials", "mats", "--out", "o.png"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: mats: '--materials': cannot read the directory: Permission denied"), err
+    assert not (textured / "o.png").exists()
+
+
+INTERRUPT = """
+import importlib, os, signal
+def interrupted(*a, **k):
+    os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C in the middle of the command's work
+    raise AssertionError("not interrupted")
+owner = importlib.import_module({module!r})
+*inner, last = {name!r}.split(".")
+for part in inner:
+    owner = getattr(owner, part)
+setattr(owner, last, interrupted)
+"""
+
+
+SIGNAL_DURING_SAVE = """
+import os, signal, time
+from PIL import Image
+def save(self, fp, *a, **k):
+    open(fp, "wb").write(b"partial")
+    os.kill(os.getpid(), signal.{sig})
+    time.sleep(30)
+Image.Image.save = save
+"""
+
+
+@pytest.mark.parametrize(
+    "command,module,name",
+    [
+        ((*RUN, "--out", "o.png"), "guaca_py.renderer", "Renderer.render"),
+        (("view", "view.yaml", "--headless"), "guaca_py.viewer.window", "run_viewer"),
+        (("info",), "guaca_py.context", "probe_capabilities"),
+        (("methods",), "guaca_py.context", "probe_capabilities"),
+    ],
+    ids=["render", "view", "info", "methods"],
+)
+def test_ctrl_c_exits_130_with_one_line(textured, command, module, name):
+    """In every command: status 130, 'interrupted' and nothing else on stderr, no file written."""
+    before = snapshot(textured)
+    r = guaca(*command, cwd=textured, prelude=INTERRUPT.format(module=module, name=name))
+    assert r.returncode == 130 and r.stderr == "interrupted\n", r.stderr
+    assert snapshot(textured) == before
+
+
+@pytest.mark.parametrize("sig,status,stderr", [("SIGTERM", -15, ""), ("SIGINT", 130, "interrupted\n")])
+def test_a_signal_while_writing_keeps_the_old_image_and_no_temporary(textured, sig, status, stderr):
+    (textured / "o.png").write_bytes(b"the previous image")
+    before = snapshot(textured)
+    prelude = SIGNAL_DURING_SAVE.replace("{sig}", sig)
+    r = guaca(*RUN, "--out", "o.png", cwd=textured, prelude=prelude)
+    assert r.returncode == status and r.stderr == stderr, r.stderr
+    assert snapshot(textured) == before  # the old image, and no .gtmp- file beside it
+
+
+def test_api_sizes_take_numpy_integers_and_name_the_argument(renderer_factory):
+    """Renderer.render(scene, np.int64(16), ...) renders; a bad size names `width`, not the command's option."""
+    import numpy as np
+
+    from guaca_py.errors import LimitError
+    from guaca_py.scene.loader import demo_scene
+
+    r = renderer_factory("default")
+    assert r.render(demo_scene(), np.int64(24), np.uint16(16)).image.shape == (16, 24, 3)
+    for width, got in ((np.int32(0), "0"), (16.0, "16.0"), (np.float32(3), "3.0"), (np.bool_(True), "True")):
+        with pytest.raises(LimitError) as err:
+            r.render(demo_scene(), width, 16)
+        msg = str(err.value)
+        assert msg.startswith("'width': must be a positive integer, got") and got in msg and "--" not in msg, msg
+    with pytest.raises(LimitError, match="^'height': must be a positive integer, got -2"):
+        r.render(demo_scene(), 16, -2)

@@ -266,8 +266,8 @@ def test_unchanged_nodes_cost_no_matrix_work_and_in_place_edits_are_seen(host_ct
     from guaca_py.scene.graph import Transform
 
     calls = []
-    original = Transform.matrix
-    monkeypatch.setattr(Transform, "matrix", lambda self: calls.append(1) or original(self))
+    original = Transform.glm_matrix  # what the draw cache asks a transform for
+    monkeypatch.setattr(Transform, "glm_matrix", lambda self: calls.append(1) or original(self))
     r = Renderer("exact", ctx=host_ctx)
     scene = _scene()
     r.render(scene, SIZE, SIZE, read_back=False)

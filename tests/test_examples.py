@@ -18,15 +18,23 @@ def _example(name: str):
     return module
 
 
-def test_embed_host_app_keeps_host_drawing_intact(tmp_path):
+def test_embed_host_app_composes_with_the_host_frame(tmp_path):
     out = tmp_path / "host.png"
-    img = _example("embed_host_app").main(["--frames", "3", "--width", "96", "--height", "80", "--out", str(out)])
+    example = _example("embed_host_app")
+    img = example.main(["--frames", "3", "--width", "96", "--height", "80", "--out", str(out)])
     assert out.is_file() and img.shape == (80, 96, 3)
-    bar = img[-7:].astype(float)  # the host's UI bar: bottom 10% of the rows
     scene = img[: 80 - 10].astype(float)
     assert scene.std() > 10  # guaca's frame is there
-    # the bar is blended (alpha 0.8) over guaca's frame: the host's blend state survived guaca's frame;
+    # the host's gradient stays where nothing of guaca is in front of it (its top row: the top colour)
+    assert np.abs(img[0, :8] - np.array(example.GRADIENT[1]) * 255).max() <= 3
+    # the host's opaque marker is there (guaca's frame was composed over it, not drawn instead of it),
+    # and so is the pin the host drew after guaca's frame with its depth test
+    marker = (img[..., 0] > 200) & (img[..., 1] > 90) & (img[..., 1] < 170) & (img[..., 2] < 60)
+    pin = (img[..., 0] > 200) & (img[..., 1] > 200) & (img[..., 2] < 120)
+    assert marker.sum() > 100 and pin.sum() > 10
+    # the UI bar is blended (alpha 0.8) over the host's frame: the host's blend state survived guaca's frame;
     # drawn opaque it would be exactly its own colour (26, 26, 51) everywhere
+    bar = img[-7:].astype(float)  # the host's UI bar: bottom 10% of the rows
     assert np.abs(bar - np.array([26.0, 26.0, 51.0])).max(axis=2).mean() > 8
     assert (bar[:, :, 2] >= bar[:, :, 0]).all() and bar.max() < 0.8 * 0.4 * 255 + 0.2 * 255 + 2
 

@@ -7,10 +7,12 @@ this package imports every such module.
 
 from __future__ import annotations
 
-from ..registry import METHODS
+from ..errors import ConfigError
+from ..registry import AUTO, METHODS, unknown_method
 from . import (  # noqa: F401  (imported to register their methods)
     abuffer,
     approximate,
+    auto,
     counted,
     kbuffer,
     peeling,
@@ -26,8 +28,10 @@ def method_ids() -> list[str]:
 
 
 def require_method_id(mid: str, where: str) -> None:
-    """Raise a ConfigError under `where` (the option or argument that gave it) unless `mid` is a method id."""
-    METHODS.require(mid, where)
+    """Raise a ConfigError under `where` (the option or argument that gave it) unless `mid` is a method id or 'auto'."""
+    if mid != AUTO and mid not in METHODS:
+        reason, hint = unknown_method(mid)
+        raise ConfigError(reason, where, hint=hint)
 
 
 def method_class(mid: str) -> MethodSpec:
@@ -35,4 +39,12 @@ def method_class(mid: str) -> MethodSpec:
     return METHODS.get(mid)
 
 
-__all__ = ["MethodSpec", "TransparencyMethod", "method_ids", "method_class", "require_method_id"]
+__all__ = [
+    "AUTO",
+    "MethodSpec",
+    "TransparencyMethod",
+    "method_ids",
+    "method_class",
+    "require_method_id",
+    "unknown_method",
+]

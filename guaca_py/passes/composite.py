@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..pipeline.resources import HOST_MARK
 from ..pipeline.retry import settle
 from ..registry import register
 from ..shaders import set_uniform
@@ -14,13 +15,17 @@ from .base import FullscreenPass
 class CompositePass(FullscreenPass):
     """Full-screen pass producing linear HDR color ('hdr').
 
+    Over the host's layer (render(..., over_target=True)) it draws no background: it stores
+    premultiplied colour and the frame's coverage as alpha, which the presenter blends over the
+    host's colour, and it does not shade the G-buffer pixels that hold the host's surface.
+
     With a per-pixel epilogue (tone mapping right after it, nothing else reading 'hdr': see
     pipeline/assemble.py) it applies that to each pixel before storing and writes the
     epilogue's output ('ldr', RGBA8) instead.
     """
 
     name = "composite"
-    reads = ("gbuffer", "transparent", "light_grid")
+    reads = ("gbuffer", "transparent", "light_grid", "host_layer")
     writes = ("hdr",)
     target_dtype = "f4"
     compute = True
@@ -44,9 +49,12 @@ class CompositePass(FullscreenPass):
     def program(self, frame):
         """Composite program for this method, light lookup and transparency presence."""
         store = frame.resources["transparent"]
+        g = frame.resources["gbuffer"]
         tvars = dict(
             has_transparency=store is not None,
-            has_opaque=frame.resources["gbuffer"].has_opaque,
+            has_opaque=g.has_opaque,
+            over_host=frame.resources["host_layer"] is not None,
+            host_mark=HOST_MARK,
             **frame.shading_vars(),
             method_extensions=store.resolve_extensions() if store else "",
             method_resolve_template=store.resolve_template() if store else "",
@@ -86,6 +94,6 @@ class CompositePass(FullscreenPass):
         )
         if store is not None:
             store.after_composite(frame)
-        if store is None and not g.has_opaque:  # nothing drawn: the background (or its tone map) everywhere
+        if store is None and not g.has_opaque:  # nothing drawn: one colour everywhere (background or none)
             frame.uniform_textures.add(tex.glo)
         frame.resources[self.writes[0]] = tex

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import moderngl
 
-from ..pipeline.resources import GBuffer, TransparentStore
+from ..pipeline.resources import HOST_MARK, GBuffer, TransparentStore
 from ..registry import register
+from ..shaders.slots import Texture
 from .base import Pass
 
 
@@ -14,7 +15,7 @@ class GeometryPass(Pass):
     """Rasterizes the draw list; opaque draws first so hidden transparent fragments are culled early."""
 
     name = "geometry"
-    reads = ("draw_list",)
+    reads = ("draw_list", "host_layer")
     writes = ("gbuffer", "transparent")
 
     def __init__(self, device, settings, readers=None):
@@ -51,12 +52,17 @@ class GeometryPass(Pass):
         self.ctx.enable(mgl.DEPTH_TEST)
         self.ctx.depth_func = "<"
         has_opaque = any(not d.transparent for d in frame.draws)
+        host = frame.resources["host_layer"]
         # An empty frame needs no depth: the composite then reads none. Depth only: the composite
         # reads the colour targets only where an opaque surface was drawn. A depth buffer nothing
         # has written since its last clear is not cleared again: only opaque draws write it
         # (transparent passes test against it with writes off), and on the H100 the clear took
         # 0.07 ms of a 1024² frame, 0.25 ms at 4 samples (docs/decisions.md, 2026-11-25 "the G-buffer depth").
-        if frame.draws and (has_opaque or not self._depth_clean):
+        # Over the host's layer every pixel starts at the host's depth instead (no clear needed).
+        if host is not None:
+            self._enter_host_layer(host)
+            self._depth_clean = False
+        elif frame.draws and (has_opaque or not self._depth_clean):
             self._depth_only.depth_mask = True  # transparent passes leave it off
             self._depth_only.clear(depth=1.0)
             fbo.use()  # clearing bound the depth-only framebuffer
@@ -71,8 +77,9 @@ class GeometryPass(Pass):
             normal=fbo.color_attachments[1],
             material=fbo.color_attachments[2],
             depth=fbo.depth_attachment,
-            has_opaque=has_opaque,
+            has_opaque=has_opaque or host is not None,
             samples=self._samples,
+            host_layer=host is not None,
         )
         aa = self.device.antialiasing
         frame.stats["antialiasing"] = {
@@ -91,6 +98,24 @@ class GeometryPass(Pass):
             self.ctx.memory_barrier()
         elif not has_transparency:
             frame.stats["fragments"] = {"stored": 0}
+        self.ctx.depth_func = "<"
+
+    def _enter_host_layer(self, host) -> None:
+        """Write the host's depth into every pixel (and sample) of the G-buffer, its albedo marked as the host's.
+
+        A full-screen draw rather than a blit: a blit cannot go from one sample to several, and the
+        colour targets must be marked in the same go (the composite shades only guaca's surfaces).
+        """
+        prog = self.device.programs.program(
+            {
+                "vertex_shader": ("composite/fullscreen.vert.j2", {}),
+                "fragment_shader": ("gbuffer/host_layer.frag.j2", {"host_mark": HOST_MARK}),
+            },
+            label="host_layer",
+        )
+        host.depth.use(location=Texture.HOST_DEPTH)
+        self.ctx.depth_func = "1"  # every pixel takes the host's depth, whatever the buffer held
+        self.device.fullscreen(prog)
         self.ctx.depth_func = "<"
 
     def collect(self, frame) -> None:

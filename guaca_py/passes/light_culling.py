@@ -24,7 +24,7 @@ from .base import (
     Pass,
 )
 from .light_grid_cpu import compare_grids, exact_tile_lights, grid_shape, unpack_grid
-from .lights import LIGHT_TYPE_CODE, light_table, pack_lights, visible_mask
+from .lights import light_table, pack_lights, reaches_everywhere, visible_mask
 
 MODES = ("auto", "conservative", "fallback", "off")
 ARC_SEGMENTS = 8  # proxy profile: segments of the range sphere's arc
@@ -141,14 +141,14 @@ class LightCullingPass(Pass):
 
         Proxies are clipped by the near and far planes, which removes their caps. A ray from the eye
         that meets the clipped volume still crosses a drawn face (where it enters or leaves),
-        unless the volume spans both planes along it: only such lights (and directional ones)
+        unless the volume spans both planes along it: only such lights (and directional and ambient ones)
         are given every tile.
         """
         rows = table[idx]
         depth = -(rows[:, 0:3] @ view[2, :3] + view[2, 3])
         reach = rows[:, 3] * PROXY_EXTENT * (1.0 + _PLANE_MARGIN)
         spans = (depth - reach <= near * (1.0 + _PLANE_MARGIN)) & (depth + reach >= far * (1.0 - _PLANE_MARGIN))
-        everywhere = spans | (rows[:, 7] == LIGHT_TYPE_CODE["directional"])
+        everywhere = spans | reaches_everywhere(rows)
         return np.concatenate([idx[~everywhere], idx[everywhere]]), int(np.count_nonzero(~everywhere))
 
     # ------------------------------------------------------------------ GPU side

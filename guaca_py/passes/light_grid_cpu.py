@@ -3,7 +3,7 @@
 A tile's frustum is the part of the view frustum (near to far) that projects into the tile's
 on-screen pixel rectangle. A point light's volume is the open ball of its range; a spot light's is
 that ball cut by the cone of its outer half-angle (the set where the shading is non-zero); a
-directional light reaches every tile. Sphere tests are exact (distance from the centre to the
+directional or ambient light reaches every tile. Sphere tests are exact (distance from the centre to the
 frustum polyhedron); spot tests are exact except that the minimum over the cone's rim angle is
 taken over `cone_samples` rays, which can only under-report an overlap, never invent one.
 """
@@ -16,6 +16,7 @@ import numpy as np
 
 from ..pipeline.resources import unpack_grid
 from ..scene.graph import Light
+from .lights import EVERYWHERE_TYPES
 
 # corners 0-3 on the near plane, 4-7 on the far plane, counter-clockwise seen from the eye
 _FACES = np.array([[0, 1, 2, 3], [4, 7, 6, 5], [0, 4, 5, 1], [1, 5, 6, 2], [2, 6, 7, 3], [3, 7, 4, 0]])
@@ -130,7 +131,7 @@ def exact_tile_lights(
         for k in range(cp.shape[0]):
             i = s + k
             light = lights[i]
-            if light.type == "directional":
+            if light.type in EVERYWHERE_TYPES:
                 out[i] = True
                 continue
             off = cp[k] - pos[i]

@@ -6,7 +6,9 @@ import numpy as np
 
 from ..scene.graph import Light
 
-LIGHT_TYPE_CODE = {"point": 0.0, "spot": 1.0, "directional": 2.0}
+LIGHT_TYPE_CODE = {"point": 0.0, "spot": 1.0, "directional": 2.0, "ambient": 3.0}
+#: lights without a position reach every tile: light culling gives them every tile's bit
+EVERYWHERE_TYPES = ("directional", "ambient")
 FLOATS_PER_LIGHT = 16
 
 
@@ -49,9 +51,14 @@ def frustum_planes(view_projection: np.ndarray) -> np.ndarray:
     return planes / np.linalg.norm(planes[:, :3], axis=1, keepdims=True)
 
 
+def reaches_everywhere(table: np.ndarray) -> np.ndarray:
+    """Per light_table row: a light without a position (directional, ambient), which reaches every tile."""
+    return np.isin(table[:, 7], [LIGHT_TYPE_CODE[t] for t in EVERYWHERE_TYPES])
+
+
 def visible_mask(table: np.ndarray, view_projection: np.ndarray) -> np.ndarray:
-    """Per light_table row: can its volume (range sphere) reach the view frustum; directional lights always."""
+    """Per light_table row: can its volume (range sphere) reach the view frustum; directional and ambient always."""
     p = np.ones((len(table), 4))
     p[:, :3] = table[:, 0:3]
     inside = np.all(p @ frustum_planes(view_projection).T >= -table[:, 3:4], axis=1)
-    return inside | (table[:, 7] == LIGHT_TYPE_CODE["directional"])
+    return inside | reaches_everywhere(table)

@@ -13,7 +13,7 @@ from .resources import RESOURCE_TYPES
 if TYPE_CHECKING:
     from ..passes.base import Pass
 
-FRAME_INPUTS = ("draw_list", "lights")  # resources the frame itself provides before the first pass
+FRAME_INPUTS = ("draw_list", "lights", "host_layer")  # resources the frame itself provides before the first pass
 
 
 def readers_of(config: PipelineConfig) -> dict[str, tuple[str, ...]]:

@@ -7,9 +7,9 @@ from pathlib import Path
 
 from .. import antialiasing
 from ..errors import ConfigError
-from ..registry import METHODS, PASSES
+from ..registry import AUTO, METHODS, PASSES, auto_settings_schema, unknown_method
 from ..resources import builtin_pipeline
-from ..yaml_source import Located, load_yaml_file, load_yaml_text
+from ..yaml_source import MAX_CONFIG_BYTES, Located, load_yaml_file, load_yaml_text
 from .settings import Setting, positive, resolve_settings
 
 COMPULSORY = ("geometry", "light_culling", "composite")
@@ -67,10 +67,12 @@ def parse_pipeline(doc: Located) -> PipelineConfig:
         raise doc.error(("transparency",), f"must be a mapping like {{method: presort_lf_et}}, got {given_tr!r}")
     tr = dict(given_tr or {})
     mid = tr.pop("method", "presort_lf_et")
-    if not isinstance(mid, str) or mid not in METHODS:
-        raise doc.error(("transparency", "method"), *METHODS.unknown(mid))
-    schema = METHODS.get(mid).settings_schema()
+    if not isinstance(mid, str) or (mid != AUTO and mid not in METHODS):
+        raise doc.error(("transparency", "method"), *unknown_method(mid))
+    schema = auto_settings_schema() if mid == AUTO else METHODS.get(mid).settings_schema()
     settings = resolve_settings(schema, tr, lambda k, r, h: doc.error(("transparency", k), r, h))
+    if mid == AUTO:  # the values given; the method picked on the device fills in its own defaults
+        settings = {k: settings[k] for k in tr}
     aa = antialiasing.parse(
         data.get("antialiasing"), lambda k, r, h: doc.error(("antialiasing",) + ((k,) if k else ()), r, h)
     )
@@ -148,7 +150,7 @@ def load_pipeline(spec: str | Path | PipelineConfig = "default") -> PipelineConf
                 key="pipeline",
                 hint="give a path to a .yaml file or one of: default, exact",
             )
-    return parse_pipeline(load_yaml_file(p))
+    return parse_pipeline(load_yaml_file(p, max_bytes=MAX_CONFIG_BYTES))
 
 
 def pipeline_from_text(text: str, name: str = "<string>") -> PipelineConfig:

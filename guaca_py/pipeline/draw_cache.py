@@ -10,8 +10,7 @@ which keeps the cache bounded however the scene changes.
 from __future__ import annotations
 
 import numpy as np
-
-from ..shaders import mat_bytes
+from pyglm import glm
 
 _NUMBERS = frozenset((float, int))
 
@@ -26,13 +25,6 @@ def freeze(value):
     if isinstance(value, (float, np.floating)):
         return float(value)
     return value
-
-
-def transform_key(transform):
-    """Hashable key of a Transform's values (a MatrixTransform's matrix bytes)."""
-    if hasattr(transform, "_matrix"):
-        return ("matrix", transform._matrix.tobytes())
-    return (freeze(transform.translation), freeze(transform.rotation_deg), freeze(transform.scale))
 
 
 class _TwoGenerations:
@@ -68,15 +60,17 @@ class DrawCache:
         self._worlds = _TwoGenerations()
         self._materials = _TwoGenerations()
 
-    def world(self, parent_key, parent_world: np.ndarray | None, transform) -> tuple:
-        """(key, world matrix, model bytes, normal-matrix bytes) of a node under its parent."""
-        key = (parent_key, transform_key(transform))
+    def world(self, parent_key, parent_world: glm.dmat4 | None, transform) -> tuple:
+        """(key, PyGLM world matrix, numpy world matrix, model bytes, normal-matrix bytes) of a node under its parent."""
+        key = (parent_key, transform.key())
         hit = self._worlds.get(key)
         if hit is not None:
             return hit
-        local = transform.matrix()
-        world = local if parent_world is None else parent_world @ local
-        return self._worlds.put(key, (key, world, mat_bytes(world), mat_bytes(np.linalg.inv(world).T)))
+        local = transform.glm_matrix()
+        world = local if parent_world is None else parent_world * local
+        # column-major float32 bytes, as mat_bytes() writes them
+        model, normal = glm.mat4(world).to_bytes(), glm.mat4(glm.transpose(glm.inverse(world))).to_bytes()
+        return self._worlds.put(key, (key, world, np.array(world), model, normal))
 
     def material(self, key, resolve):
         """The resolved (description, values, transparent) for a material-instance key, computed once."""

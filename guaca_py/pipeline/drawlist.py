@@ -104,7 +104,7 @@ def _build_cached(scene: Scene, materials: MaterialRegistry, cache) -> list[Draw
         return lambda: _resolve_material(inst, scene, materials)
 
     def visit(node, parent_key, parent_world):
-        key, world, model_bytes, normal_bytes = cache.world(parent_key, parent_world, node.transform)
+        key, world_glm, world, model_bytes, normal_bytes = cache.world(parent_key, parent_world, node.transform)
         if node.mesh is not None:
             placed.append((node, world))
             inst = node.material
@@ -113,7 +113,7 @@ def _build_cached(scene: Scene, materials: MaterialRegistry, cache) -> list[Draw
                 Draw(len(draws), node.name, node.mesh, desc, values, world, transparent, model_bytes, normal_bytes)
             )
         for child in node.children:
-            visit(child, key, world)
+            visit(child, key, world_glm)
 
     placed: list[tuple] = []
     for root in scene.nodes:

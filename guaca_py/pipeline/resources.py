@@ -36,8 +36,30 @@ class GBuffer:
     normal: moderngl.Texture
     material: moderngl.Texture
     depth: moderngl.Texture
-    has_opaque: bool  # whether any opaque draw wrote it this frame (the composite reads colour only then)
+    # whether its depth holds a surface this frame: an opaque draw, or the host's layer (the composite
+    # reads the depth only then, and the colour only where guaca drew: see host_layer)
+    has_opaque: bool
     samples: int
+    # the host's opaque layer is under the frame (render(..., over_target=True)): its pixels hold the
+    # host's depth and the albedo alpha HOST_MARK, which the composite does not shade
+    host_layer: bool = False
+
+
+# Albedo alpha of G-buffer pixels that hold the host's surface (guaca's opaque draws write 0 or 1)
+HOST_MARK = -1.0
+
+
+@dataclass(frozen=True)
+class HostLayer:
+    """The host's opaque layer under the frame (render(..., target=fbo, over_target=True)).
+
+    Its colour stays in the host's framebuffer (the frame is blended over it); its depth, in the
+    standard OpenGL range [0, 1] made with the scene camera's projection and view, is copied here
+    (single-sampled, the frame's size) for the geometry pass to start the G-buffer depth from.
+    """
+
+    depth: moderngl.Texture  # the host's depth at the frame's pixels (compare mode off: read as values)
+    source: str  # "texture" or "renderbuffer": the host's depth attachment it was copied from
 
 
 @dataclass(frozen=True)
@@ -135,6 +157,7 @@ class TransparentStore:
 
 RESOURCE_TYPES: dict[str, tuple[type, ...]] = {
     "draw_list": (list,),
+    "host_layer": (HostLayer, type(None)),  # None: the frame is drawn over nothing of the host's
     "lights": (list,),
     "gbuffer": (GBuffer,),
     "light_grid": (LightGrid,),

@@ -6,6 +6,7 @@ from __future__ import annotations
 # a misspelt key would otherwise become a silent new entry that no reader looks at.
 SCHEMA: dict[str, str] = {
     "method": "transparency method id",
+    "method_auto": "why `method: auto` picked the method (the device's measured table)",
     "insertion_path": "A-buffer insertion: 64bit or 32bit",
     "device": "GL renderer string",
     "resolution": "[width, height]",

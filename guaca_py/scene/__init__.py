@@ -1,9 +1,11 @@
 """Scene graph, procedural primitives, mesh files and YAML scene loading."""
 
+from .files import as_scene
 from .graph import LIGHT_TYPES, Camera, Light, MaterialInstance, MeshData, Node, Scene, Transform
-from .loader import demo_scene, load_scene, load_scene_text
+from .loader import demo_scene, load, load_scene, load_scene_text
 from .mesh_io import load_mesh_file
 from .primitives import PRIMITIVE_KINDS, make_primitive, primitive_params
+from .trimesh_scene import SceneWarning
 
 __all__ = [
     "LIGHT_TYPES",
@@ -14,8 +16,11 @@ __all__ = [
     "MeshData",
     "Node",
     "Scene",
+    "SceneWarning",
     "Transform",
+    "as_scene",
     "demo_scene",
+    "load",
     "load_mesh_file",
     "load_scene",
     "load_scene_text",

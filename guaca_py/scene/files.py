@@ -1,66 +1,107 @@
-"""Any scene input as a Scene: scene YAML, a glTF file, or a single mesh file.
+"""Model files as Scenes: glTF (.gltf/.glb) and every mesh format trimesh reads (OBJ/MTL, PLY, STL, ...).
 
-A glTF or mesh file given where a scene is expected gets a camera framing it (the glTF's own
-camera when it has one) and one default light, so `guaca render model.glb` just works.
+`guaca_py.load` (scene/loader.py) sends every file that is not scene YAML here. Such files get
+their own camera when it sees the model and the default light rig (scene/framing.py).
+`as_scene` accepts a Scene or a trimesh scene wherever a Scene is expected.
 """
 
 from __future__ import annotations
 
-import math
+import weakref
 from pathlib import Path
 
-import numpy as np
+from .framing import camera_and_lights
+from .gltf import GLTF_SUFFIXES, load_gltf
+from .graph import Scene
+from .mesh_io import MESH_FORMATS_HINT, file_error, trimesh_load_args
+from .nodes import Node
+from .trimesh_scene import nodes_from_trimesh
 
-from .gltf import GLTF_SUFFIXES, load_gltf, scene_bounds
-from .graph import Camera, Light, MaterialInstance, Node, Scene
-from .loader import load_scene
-from .mesh_io import load_mesh_file
-
-#: suffixes read as a single mesh (anything else that is not glTF is read as scene YAML)
+#: suffixes read as scene YAML; glTF by GLTF_SUFFIXES; anything trimesh reads as a mesh file
+YAML_SUFFIXES = (".yaml", ".yml")
+#: the mesh formats named in messages (trimesh reads more: .off, .dae, .3mf, ...)
 MESH_SUFFIXES = (".obj", ".ply", ".stl", ".off", ".dae", ".3mf")
-#: where the default camera looks from, relative to the model's centre (above, right, in front)
-_VIEW_DIRECTION = np.array([0.45, 0.35, 1.0]) / np.linalg.norm([0.45, 0.35, 1.0])
 
 
-def framing_camera(lo: np.ndarray, hi: np.ndarray, fov_y: float = 45.0) -> Camera:
-    """A camera that sees the whole box [lo, hi] (its bounding sphere) from above, right and front."""
-    center = (np.asarray(lo, dtype=np.float64) + np.asarray(hi, dtype=np.float64)) / 2.0
-    radius = max(float(np.linalg.norm(np.subtract(hi, lo))) / 2.0, 1e-3)
-    dist = radius / math.sin(math.radians(fov_y) / 2.0) * 1.05
-    eye = center + _VIEW_DIRECTION * dist
-    return Camera(
-        position=tuple(eye.tolist()),
-        target=tuple(center.tolist()),
-        up=(0.0, 1.0, 0.0),
-        fov_y=fov_y,
-        near=max(dist - 1.5 * radius, dist * 1e-3),
-        far=dist + 1.5 * radius,
-    )
+def _is_gltf(p: Path) -> bool:
+    """A .gltf/.glb suffix, or a binary glTF's magic bytes under another name."""
+    if p.suffix.lower() in GLTF_SUFFIXES:
+        return True
+    try:
+        with p.open("rb") as f:
+            return f.read(4) == b"glTF"
+    except OSError:
+        return False
 
 
-def default_light(camera: Camera) -> Light:
-    """A white directional key light from above and behind the camera's left shoulder."""
-    view = np.subtract(camera.target, camera.position)
-    view = view / np.linalg.norm(view)
-    direction = view + np.array([0.35, -0.9, 0.0])
-    return Light(type="directional", direction=tuple((direction / np.linalg.norm(direction)).tolist()), intensity=3.0)
-
-
-def scene_from_nodes(nodes: list[Node], camera: Camera | None, source: Path | None) -> Scene:
-    """Nodes with a camera (framing them when None) and the default light."""
-    cam = camera or framing_camera(*scene_bounds(nodes))
-    return Scene(camera=cam, lights=[default_light(cam)], nodes=nodes, source=source)
-
-
-def load_any(path: str | Path) -> Scene:
-    """Scene YAML, a .glb/.gltf file, or a mesh file (OBJ, PLY, STL...) as a renderable Scene."""
+def model_kind(path: str | Path) -> str:
+    """'yaml', 'gltf' or 'mesh': which reader `load` uses for the file at `path`."""
     p = Path(path)
     suffix = p.suffix.lower()
-    if suffix in GLTF_SUFFIXES:
-        content = load_gltf(p)
-        return scene_from_nodes(content.nodes, content.camera, p.resolve())
+    if suffix in YAML_SUFFIXES:
+        return "yaml"
+    if _is_gltf(p):
+        return "gltf"
     if suffix in MESH_SUFFIXES:
-        mesh = load_mesh_file(p)
-        node = Node(name=p.stem, mesh=mesh, material=MaterialInstance("pbr", {}))
-        return scene_from_nodes([node], None, p.resolve())
-    return load_scene(p)
+        return "mesh"
+    if suffix:
+        import trimesh
+
+        if suffix.lstrip(".") in trimesh.available_formats():
+            return "mesh"
+    return "yaml"
+
+
+def load_model(path: str | Path) -> Scene:
+    """A glTF or mesh file (OBJ with its MTL materials, PLY, STL, ...) as a Scene with camera and lights."""
+    p = Path(path)
+    if model_kind(p) == "gltf":
+        content = load_gltf(p)
+        nodes, camera = content.nodes, content.camera
+    else:
+        nodes, camera = load_mesh_scene(p), None
+    camera, lights = camera_and_lights(nodes, camera, p.name)
+    return Scene(camera=camera, lights=lights, nodes=nodes, source=p.resolve())
+
+
+def load_mesh_scene(path: str | Path) -> list[Node]:
+    """A mesh file as root Nodes with the file's parts and materials (an OBJ's MTL: colours, map_Kd, dissolve)."""
+    import trimesh  # imported lazily: scenes made only of primitives never pay for it
+
+    p = Path(path)
+    fail = file_error(p, None, None, None)
+    if not p.is_file():
+        what = "is a directory, not a mesh file" if p.is_dir() else "not found"
+        raise fail(f"mesh file {what}: {p}", "check the path")
+    try:
+        loaded = trimesh.load(**trimesh_load_args(p, trimesh), force="scene")
+    except Exception as exc:  # trimesh raises many types for unreadable input; all mean "bad file"
+        raise fail(f"cannot read mesh file {p}: {exc}", MESH_FORMATS_HINT) from exc
+    return nodes_from_trimesh(loaded, str(p), fail)
+
+
+_CONVERTED: dict[int, tuple] = {}  # id -> (weak reference, trimesh content hash, Scene)
+
+
+def as_scene(scene) -> Scene:
+    """`scene` itself when it is a Scene; a trimesh.Scene or Trimesh converted (once per content); else TypeError.
+
+    The conversion is kept per object while trimesh reports the same content hash, so a frame
+    loop that passes the same trimesh scene converts (and uploads) it once.
+    """
+    if isinstance(scene, Scene):
+        return scene
+    if (type(scene).__module__ or "").startswith("trimesh"):
+        key, state = id(scene), hash(scene)
+        hit = _CONVERTED.get(key)
+        if hit is not None and hit[0]() is scene and hit[1] == state:
+            return hit[2]
+        converted = Scene.from_trimesh(scene)
+        _CONVERTED[key] = (weakref.ref(scene, lambda _ref, k=key: _CONVERTED.pop(k, None)), state, converted)
+        return converted
+    if isinstance(scene, (str, Path)):
+        raise TypeError(f"render takes a Scene, got the path {str(scene)!r}: load it with guaca_py.load(path)")
+    raise TypeError(
+        f"render takes a guaca_py Scene, got {type(scene).__name__}: build one with guaca_py.load(path) "
+        "or Scene.from_trimesh(trimesh_scene)"
+    )

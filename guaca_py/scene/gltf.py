@@ -1,55 +1,30 @@
 """glTF 2.0 (.glb / .gltf) files as scene nodes: node hierarchy, meshes, PBR materials, camera.
 
-trimesh parses the file; this module keeps its node graph (local matrices, parent/child
-order) instead of flattening it, and maps each glTF material onto the built-in
-`gltf_opaque` / `gltf_mask` / `gltf_blend` materials (materials/gltf_*.json):
-
-======================================  =====================================================
-glTF                                    guaca_py
-======================================  =====================================================
-baseColorFactor, baseColorTexture       base_color (vec4), base_color_map (sRGB decoded)
-alphaMode OPAQUE / MASK / BLEND         gltf_opaque / gltf_mask (alpha_cutoff) / gltf_blend
-metallicFactor, roughnessFactor, map    metallic, roughness, metallic_roughness_map (B, G)
-normalTexture (+ scale)                 normal_map, has_normal_map, normal_scale
-emissiveFactor, emissiveTexture         emissive, emissive_map (sRGB decoded)
-doubleSided                             double_sided (back faces discarded when 0)
-======================================  =====================================================
-
-BLEND materials whose alpha is 1 everywhere (factor 1, no texture alpha below 1) become
-gltf_opaque: they can never be transparent, so they skip the A-buffer. Occlusion maps,
-vertex colours, texture transforms, skins and animations are ignored. trimesh stores
-factors as 8-bit values; the file's own floats are used where the material has a unique name.
+trimesh parses the file; scene/trimesh_scene.py keeps its node graph (local matrices,
+parent/child order) instead of flattening it and maps each glTF material onto the built-in
+`gltf_opaque` / `gltf_mask` / `gltf_blend` materials (its module docstring has the table).
+This module adds what trimesh drops: the factors as the file wrote them (trimesh stores 8-bit
+values; the file's floats are used where the material has a unique name) and the camera's
+world transform (trimesh keeps only the camera node's local matrix, so a camera under a
+scaled or moved parent would look from the wrong place).
 """
 
 from __future__ import annotations
 
 import json
+import math
 import struct
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from pyglm import glm
 
-from .graph import Camera, MaterialInstance, MeshData, Node, Transform
-from .mesh_io import MESH_FORMATS_HINT, file_error, trimesh_to_meshdata
-from .texture import TextureImage
+from .mesh_io import MESH_FORMATS_HINT, file_error
+from .nodes import Camera, MeshData, Node, scene_bounds
+from .trimesh_scene import camera_from_matrix, far_past, nodes_from_trimesh, warn_scene
 
 GLTF_SUFFIXES = (".glb", ".gltf")
-
-
-class MatrixTransform(Transform):
-    """A node transform given as a full 4x4 local matrix (glTF nodes may carry any affine matrix)."""
-
-    def __init__(self, matrix: np.ndarray):
-        super().__init__()
-        self._matrix = np.asarray(matrix, dtype=np.float64).reshape(4, 4)
-
-    def matrix(self) -> np.ndarray:
-        """The stored local-to-parent matrix."""
-        return self._matrix.copy()
-
-    def __repr__(self) -> str:
-        return f"MatrixTransform({self._matrix.tolist()})"
 
 
 @dataclass
@@ -91,82 +66,68 @@ def _exact_factors(doc: dict) -> dict[str, dict]:
     return out
 
 
-def _texture(img, name: str) -> TextureImage | None:
-    if img is None:
+def _node_local(node: dict) -> glm.dmat4:
+    """A glTF node's local matrix: `matrix` (column-major), else T * R * S."""
+    if "matrix" in node:
+        return glm.dmat4(np.asarray(node["matrix"], dtype=np.float64).reshape(4, 4).T)
+    t = glm.dvec3(*node.get("translation", (0.0, 0.0, 0.0)))
+    x, y, z, w = node.get("rotation", (0.0, 0.0, 0.0, 1.0))
+    s = glm.dvec3(*node.get("scale", (1.0, 1.0, 1.0)))
+    return glm.translate(t) * glm.mat4_cast(glm.dquat(w, x, y, z)) * glm.scale(s)
+
+
+def camera_node(doc: dict) -> tuple[dict, np.ndarray] | None:
+    """The first camera of the file's scene in document order: (its glTF camera object, its world matrix).
+
+    The world matrix is the product of the local matrices from the scene's root down to the
+    camera's node.
+    """
+    nodes, cameras = doc.get("nodes") or [], doc.get("cameras") or []
+    scenes = doc.get("scenes") or []
+    index = doc.get("scene", 0)
+    try:
+        if scenes:
+            roots = list(scenes[index].get("nodes", []))
+        else:  # no scene: every node that is no other's child is a root
+            children = {c for n in nodes for c in n.get("children", [])}
+            roots = [i for i in range(len(nodes)) if i not in children]
+        stack = [(i, glm.dmat4(1.0)) for i in reversed(roots)]
+        seen: set[int] = set()
+        while stack:
+            i, parent = stack.pop()
+            if i in seen or not 0 <= i < len(nodes):
+                continue
+            seen.add(i)
+            node = nodes[i]
+            world = parent * _node_local(node)
+            cam = node.get("camera")
+            if cam is not None and 0 <= cam < len(cameras):
+                return cameras[cam], np.array(world)
+            stack.extend((c, world) for c in reversed(node.get("children", [])))
+    except (TypeError, ValueError, IndexError, KeyError, AttributeError):
+        return None  # a malformed node graph: trimesh has already read what it could
+    return None
+
+
+def _file_camera(doc: dict, label: str, lo: np.ndarray, hi: np.ndarray) -> Camera | None:
+    """The file's first camera at its world transform, or None (none, orthographic, or degenerate)."""
+    found = camera_node(doc)
+    if found is None:
         return None
-    return TextureImage(np.asarray(img.convert("RGBA")), name)
-
-
-def _float(value, default: float) -> float:
-    return default if value is None else float(value)
-
-
-def gltf_material(mat, exact: dict[str, dict], label: str) -> MaterialInstance:
-    """A trimesh PBRMaterial (or None) as a MaterialInstance of the built-in gltf_* materials."""
-    from trimesh.visual.material import PBRMaterial
-
-    if mat is not None and not isinstance(mat, PBRMaterial):
-        mat = mat.to_pbr()  # e.g. OBJ-style SimpleMaterial
-    if mat is None:
-        return MaterialInstance("gltf_opaque", {"double_sided": 1})
-    file_values = exact.get(mat.name or "", {})
-    base = file_values.get("base_color")
-    if base is None:
-        factor = mat.baseColorFactor
-        base = [1.0, 1.0, 1.0, 1.0] if factor is None else (np.asarray(factor, dtype=np.float64) / 255.0).tolist()
-    base = [float(v) for v in base] + [1.0] * (4 - len(base))
-    emissive = file_values.get("emissive")
-    if emissive is None:
-        emissive = [0.0, 0.0, 0.0] if mat.emissiveFactor is None else np.asarray(mat.emissiveFactor).tolist()
-    u: dict = {
-        "base_color": base[:4],
-        "metallic": _float(file_values.get("metallic", mat.metallicFactor), 1.0),
-        "roughness": _float(file_values.get("roughness", mat.roughnessFactor), 1.0),
-        "emissive": [float(v) for v in emissive][:3],
-        "double_sided": 1 if mat.doubleSided else 0,
-    }
-    color_map = _texture(mat.baseColorTexture, f"{label} baseColor")
-    for key, img, tag in (
-        ("base_color_map", color_map, None),
-        ("metallic_roughness_map", mat.metallicRoughnessTexture, "metallicRoughness"),
-        ("emissive_map", mat.emissiveTexture, "emissive"),
-        ("normal_map", mat.normalTexture, "normal"),
-    ):
-        tex = img if tag is None else _texture(img, f"{label} {tag}")
-        if tex is not None:
-            u[key] = tex
-    if "normal_map" in u:
-        u["has_normal_map"] = 1
-    mode = (mat.alphaMode or "OPAQUE").upper()
-    if mode == "MASK":
-        u["alpha_cutoff"] = _float(mat.alphaCutoff, 0.5)
-        return MaterialInstance("gltf_mask", u)
-    if mode == "BLEND":
-        texture_opaque = color_map is None or bool((color_map.pixels[:, :, 3] == 255).all())
-        if base[3] < 1.0 or not texture_opaque:
-            return MaterialInstance("gltf_blend", u)
-    return MaterialInstance("gltf_opaque", u)
-
-
-def _camera(scene, bounds_far: float) -> Camera | None:
-    """The file's camera as a look-at Camera (glTF cameras look down their local -Z)."""
-    if not getattr(scene, "has_camera", False):
+    gcam, world = found
+    persp = gcam.get("perspective") if isinstance(gcam, dict) else None
+    if gcam.get("type") != "perspective" or not isinstance(persp, dict) or "yfov" not in persp:
+        warn_scene(
+            f"{label}: its camera is {gcam.get('type', 'incomplete')!r}, only perspective cameras are supported; "
+            "a camera framing the model is used"
+        )
         return None
-    m = np.asarray(scene.camera_transform, dtype=np.float64)
-    pos = m[:3, 3]
-    forward = -m[:3, 2] / np.linalg.norm(m[:3, 2])
-    up = m[:3, 1] / np.linalg.norm(m[:3, 1])
-    cam = scene.camera
-    near = float(getattr(cam, "z_near", 0.01) or 0.01)
-    far = float(getattr(cam, "z_far", 0.0) or 0.0)
-    return Camera(
-        position=tuple(pos.tolist()),
-        target=tuple((pos + forward).tolist()),
-        up=tuple(up.tolist()),
-        fov_y=float(cam.fov[1]),
-        near=near,
-        far=far if far > near else max(bounds_far, near * 10.0),
-    )
+    near = float(persp.get("znear") or 0.01)
+    far = float(persp.get("zfar") or 0.0)  # absent: an infinite projection; this one ends past the model
+    if far <= near:
+        far = max(far_past(world[:3, 3], lo, hi), near * 10.0)
+    fov_y = min(max(math.degrees(float(persp["yfov"])), 1e-3), 179.0)
+    return camera_from_matrix(world, fov_y, near, far)
 
 
 def load_gltf(
@@ -180,57 +141,14 @@ def load_gltf(
     if not p.is_file():
         raise fail(f"glTF file not found: {p}", "check the path; relative paths resolve against the scene file")
     try:
-        scene = trimesh.load(str(p), force="scene", process=False)
+        # a binary glTF under another name is read by its magic bytes (files.py: model_kind)
+        kind = p.suffix.lower().lstrip(".") if p.suffix.lower() in GLTF_SUFFIXES else "glb"
+        tscene = trimesh.load(str(p), file_type=kind, force="scene", process=False)
     except Exception as exc:  # trimesh raises many types for unreadable input; all mean "bad file"
         raise fail(f"cannot read glTF file {p}: {exc}", MESH_FORMATS_HINT) from exc
-    exact = _exact_factors(_file_json(p))
-    graph = scene.graph
-    children: dict[str, list[str]] = {}
-    edge: dict[str, dict] = {}
-    for parent, child, data in graph.to_edgelist():
-        children.setdefault(parent, []).append(child)
-        edge[child] = data
-    meshes: dict[str, MeshData] = {}
-    materials: dict[str, MaterialInstance] = {}
-    camera_node = getattr(scene.camera, "name", None) if getattr(scene, "has_camera", False) else None
-
-    def build(name: str) -> Node | None:
-        data = edge.get(name, {})
-        node = Node(name=name, transform=MatrixTransform(data.get("matrix", np.eye(4))))
-        geom_name = data.get("geometry")
-        geom = scene.geometry.get(geom_name) if geom_name is not None else None
-        if isinstance(geom, trimesh.Trimesh) and len(geom.faces):
-            if geom_name not in meshes:
-                meshes[geom_name] = trimesh_to_meshdata(geom, geom_name, fail, f"{p} mesh '{geom_name}'")
-                mat = getattr(geom.visual, "material", None)
-                materials[geom_name] = gltf_material(mat, exact, f"{p.name} '{geom_name}'")
-            node.mesh = meshes[geom_name]
-            node.material = materials[geom_name]
-        node.children = [c for c in (build(k) for k in children.get(name, [])) if c is not None]
-        if node.mesh is None and not node.children:
-            return None  # cameras, lights, empty groups: nothing to draw
-        return node
-
-    roots = [n for n in (build(k) for k in children.get(graph.base_frame, []) if k != camera_node) if n is not None]
-    if not roots:
-        raise fail(f"{p} contains no triangle meshes", "export the model with triangle geometry")
-    content = GltfContent(roots, meshes=meshes)
-    lo, hi = scene_bounds(roots)
-    content.camera = _camera(scene, float(np.linalg.norm(hi - lo)) * 4.0 + 10.0)
+    doc = _file_json(p)
+    roots = nodes_from_trimesh(tscene, str(p), fail, _exact_factors(doc))
+    meshes = {id(n.mesh): n.mesh for root in roots for n, _ in root.walk() if n.mesh is not None}
+    content = GltfContent(roots, meshes={m.name: m for m in meshes.values()})
+    content.camera = _file_camera(doc, p.name, *scene_bounds(roots))
     return content
-
-
-def scene_bounds(nodes: list[Node]) -> tuple[np.ndarray, np.ndarray]:
-    """World-space axis-aligned bounds of every mesh under `nodes`."""
-    corners = []
-    for root in nodes:
-        for node, world in root.walk():
-            if node.mesh is None:
-                continue
-            lo, hi = node.mesh.bounds()
-            box = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-            corners.append((box @ world.T)[:, :3])
-    if not corners:
-        return np.zeros(3), np.zeros(3)
-    pts = np.vstack(corners)
-    return pts.min(axis=0), pts.max(axis=0)

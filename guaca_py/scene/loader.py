@@ -1,4 +1,7 @@
-"""Scene files: YAML text to a Scene, where every error names file, line and key.
+"""Scene files: YAML text to a Scene, where every error names file, line and key; `load` for any file.
+
+`load(path)` (`guaca_py.load`) reads scene YAML here and hands glTF and mesh files to
+scene/files.py; `load_scene` is the same function under its older name.
 
 Scene file format
 -----------------
@@ -18,6 +21,7 @@ A scene file is a YAML mapping with four optional top-level keys::
       - {type: spot, position: [0, 4, 0], direction: [0, -1, 0], color: [1, 0.9, 0.8],
          intensity: 30, radius: 12, inner_angle_deg: 15, outer_angle_deg: 25}
       - {type: directional, direction: [-1, -1, -0.5], color: [0.4, 0.4, 0.5], intensity: 1}
+      - {type: ambient, color: [0.2, 0.2, 0.25], intensity: 1}
     nodes:
       - name: pane
         mesh: {primitive: quad, size: [2, 2]}       # or {file: models/bunny.obj}
@@ -26,7 +30,8 @@ A scene file is a YAML mapping with four optional top-level keys::
         children: []                                # nodes, same format, relative to this one
 
 Lights
-    ``type`` is ``point`` (the default), ``spot`` or ``directional``. Every light takes
+    ``type`` is ``point`` (the default), ``spot``, ``directional`` or ``ambient`` (light from
+    every direction: a surface reflects color * intensity * its albedo). Every light takes
     ``color`` (RGB, >= 0, default [1, 1, 1]) and ``intensity`` (>= 0, default 1). Point and
     spot lights take ``position`` and ``radius`` (range, > 0, default 10); spot and
     directional lights take ``direction`` (where the light travels; normalised on load);
@@ -86,6 +91,7 @@ LIGHT_KEYS = {
     "point": ("type", "position", "color", "intensity", "radius"),
     "spot": ("type", "position", "direction", "color", "intensity", "radius", "inner_angle_deg", "outer_angle_deg"),
     "directional": ("type", "direction", "color", "intensity"),
+    "ambient": ("type", "color", "intensity"),
 }
 TEXTURE_SUFFIXES = (".png", ".jpg", ".jpeg")
 MAX_SCENE_DEPTH = 100  # levels of children; the loader, the graph walk and the draw list recurse per level
@@ -498,14 +504,26 @@ def load_scene_text(text: str, source_name: str = "<string>", base_dir: str | Pa
     return _Reader(source_name, base.resolve()).scene(root)
 
 
-def load_scene(path: str | Path) -> Scene:
-    """Load a scene file; relative paths inside it resolve against its directory."""
+def load(path: str | Path) -> Scene:
+    """Scene YAML, a glTF file (.gltf/.glb) or a mesh file (OBJ/MTL, PLY, STL, ...) as a Scene.
+
+    Scene files: relative paths inside them resolve against their directory. Model files are
+    read by scene/files.py: their own camera (or one framing the model) and the default lights.
+    """
+    from .files import load_model, model_kind
+
     p = Path(path)
     if not p.is_file():
         raise ConfigError(f"scene file not found: {p}", p, hint="check the path")
+    if model_kind(p) != "yaml":
+        return load_model(p)
     scene = load_scene_text(read_text(p), str(p), p.parent)
     scene.source = p.resolve()
     return scene
+
+
+#: the scene-file reader's first name: the same function, so a .glb given to it is read as glTF
+load_scene = load
 
 
 def demo_scene() -> Scene:

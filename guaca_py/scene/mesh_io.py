@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigError
-from .graph import MeshData
+from .nodes import MeshData
 
 MESH_FORMATS_HINT = "supported formats: .obj, .ply, .stl, .glb, .gltf (anything trimesh reads)"
 
@@ -67,7 +67,7 @@ def _texcoords(mesh, count: int) -> np.ndarray:
 _TEXT_FORMATS = (".obj", ".off")  # text formats whose non-UTF-8 bytes send trimesh to an undeclared charset detector
 
 
-def _load_args(p: Path, trimesh) -> dict:
+def trimesh_load_args(p: Path, trimesh) -> dict:
     """trimesh.load arguments; text files that are not UTF-8 are decoded as Latin-1 here.
 
     Their syntax is ASCII and only comments and names may hold other bytes; Latin-1 maps every
@@ -100,7 +100,7 @@ def load_mesh_file(
             f"mesh file {what}: {p}", "check the path; relative paths are resolved against the scene file's directory"
         )
     try:
-        loaded = trimesh.load(**_load_args(p, trimesh))
+        loaded = trimesh.load(**trimesh_load_args(p, trimesh))
     except Exception as exc:  # trimesh raises many types for unreadable input; all mean "bad file"
         raise fail(f"cannot read mesh file {p}: {exc}", MESH_FORMATS_HINT) from exc
 

@@ -195,6 +195,11 @@ class Texture(Kind):
         0, "kernel", "the frame (or HUD) drawn to the host: present/copy.frag.j2, present/overlay.frag.j2"
     )
     SAMPLE_PROBE = Slot(0, "kernel", "the multisampled probe read back: antialiasing/read_positions.comp.j2")
+    HOST_DEPTH = Slot(
+        0,
+        "kernel",
+        "depth copied between the host's layer and the G-buffer: gbuffer/host_layer.frag.j2, present/depth_out.frag.j2",
+    )
 
 
 KINDS = (Buffer, Image, Texture)

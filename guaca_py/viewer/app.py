@@ -99,6 +99,7 @@ class Viewer:
         self._changed = False  # a key changed what is rendered: time the next frame
         self.screenshot_requests: list[Path] = []
         self.screenshots_taken: list[Path] = []
+        self._key_shots: set[Path] = set()  # requested by the P key: a failure is a note, not an error
         self.renderer()  # build the first one now: configuration errors surface before the loop
 
     # ------------------------------------------------------------------ guaca side
@@ -108,7 +109,9 @@ class Viewer:
         if r is None:
             r = self.renderers[self.view] = Renderer(view_pipeline(self.pipeline, self.view), ctx=self.ctx)
         budget = None
-        if self.overflow_mode and size and "budget_mb" in method_class(self.method).settings_schema():
+        # `auto` names no method: the one it picked for this renderer decides
+        mid = r.method.id if self.method == "auto" else self.method
+        if self.overflow_mode and size and "budget_mb" in method_class(mid).settings_schema():
             budget = size[0] * size[1] * OVERFLOW_BYTES_PER_PIXEL / 2**20
         if self._applied.get(self.view) != (self.method, budget):
             r.set_method(self.method, {"budget_mb": budget} if budget else None)
@@ -170,8 +173,14 @@ class Viewer:
                 self.last_stats[key] = result.stats.get(key, {})
         self.frames += 1
         while self.screenshot_requests:
-            path = self._save_screenshot(fbo, (w, h), self.screenshot_requests.pop(0))
-            self.screenshots_taken.append(path)
+            path = self.screenshot_requests.pop(0)
+            try:
+                self.screenshots_taken.append(self._save_screenshot(fbo, (w, h), path))
+            except GuacaError as exc:
+                if path not in self._key_shots:  # a screenshot the caller asked for: its failure is the caller's
+                    raise
+                self.note(f"screenshot not saved: {exc}")
+                continue
             self.note(f"screenshot saved: {path}")
         if self.show_hud:
             self.hud.draw(fbo, self.hud_lines(w))
@@ -180,12 +189,22 @@ class Viewer:
         """The window's pixels as they are after guaca's frame (before the status line)."""
         from PIL import Image
 
+        from ..output import IMAGE_SUFFIXES, check_writable, write_atomic
+
         w, h = size
         px = np.frombuffer(fbo.read(viewport=(0, 0, w, h), components=3), np.uint8).reshape(h, w, 3)[::-1]
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        Image.fromarray(np.ascontiguousarray(px)).save(path)
-        return path
+        # the checks and the atomic write of every output: never over an input, a device or a FIFO
+        path = check_writable(path, "screenshot", IMAGE_SUFFIXES)
+        fmt = Image.registered_extensions().get(path.suffix.lower())
+        image = Image.fromarray(np.ascontiguousarray(px))
+        return write_atomic(path, lambda tmp: image.save(tmp, format=fmt), "screenshot")
+
+    def _free_screenshot_name(self) -> Path:
+        """The next `guaca_screenshot_NNN.png` that neither exists nor is requested: P never replaces a file."""
+        n = len(self.screenshots_taken)
+        while (p := Path(f"guaca_screenshot_{n:03d}.png")).exists() or p in self.screenshot_requests:
+            n += 1
+        return p
 
     # ------------------------------------------------------------------ status line
     def note(self, text: str, seconds: float = NOTE_SECONDS) -> None:
@@ -258,7 +277,9 @@ class Viewer:
         elif name == "O":
             self.overflow_mode = not self.overflow_mode
         elif name == "P":
-            self.screenshot_requests.append(Path(f"guaca_screenshot_{len(self.screenshots_taken):03d}.png"))
+            path = self._free_screenshot_name()
+            self._key_shots.add(path)
+            self.screenshot_requests.append(path)
         elif name == "H":
             self.show_hud = not self.show_hud
         else:

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from guaca_py import load
 from guaca_py.cli import main
 from guaca_py.reference import compare, quad_mesh, reference_of, unlit
-from guaca_py.scene.files import load_any
 from guaca_py.scene.gltf import load_gltf
-from guaca_py.scene.graph import Node, Scene
+from guaca_py.scene.graph import Node, Scene, Transform
 from guaca_py.scene.loader import load_scene_text
 
 SIZE = 64
@@ -126,15 +126,13 @@ def _reference_scene(content) -> Scene:
             color = [c * GREY_LINEAR for c in color]  # emissive factor times the sRGB-decoded texture
         if name == "hidden":
             continue  # back-facing and single-sided: culled
-        from guaca_py.scene.gltf import MatrixTransform
-
         mesh, alpha = node.mesh, 1.0
         if name == "mask":  # only the texture's right half (alpha above the cutoff) remains, opaque
             mesh = quad_mesh(0.3, 0.6)
             world = world @ np.array([[1, 0, 0, 0.3], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
         if name == "blend":
             alpha = u["base_color"][3]
-        nodes.append(Node(name, MatrixTransform(world), mesh, unlit(color, alpha)))
+        nodes.append(Node(name, Transform(matrix=world), mesh, unlit(color, alpha)))
     return Scene(camera=content.camera, background=(0.1, 0.1, 0.1), nodes=nodes)
 
 
@@ -185,23 +183,24 @@ def test_blend_with_alpha_one_compiles_opaque(tmp_path):
     (node,) = content.nodes
     assert node.material.description == "gltf_opaque"
     assert content.camera is None  # no camera in the file: given as SCENE, it gets a framing one
-    cam = load_any(path).camera
+    cam = load(path).camera
     dist = float(np.linalg.norm(np.subtract(cam.position, cam.target)))
     assert np.linalg.norm(cam.target) < 1e-9  # aimed at the quad's centre
     assert cam.near < dist - 1.42 and dist + 1.42 < cam.far  # the whole quad (radius sqrt(2)) within near..far
 
 
-def test_cli_renders_glb_and_mesh_files_with_default_camera_and_light(glb, tmp_path):
+def test_cli_renders_glb_and_mesh_files_with_default_camera_and_lights(glb, tmp_path):
     import trimesh
 
-    scene = load_any(glb)
-    assert scene.camera.fov_y == pytest.approx(40.0) and len(scene.lights) == 1
+    scene = load(glb)
+    assert scene.camera.fov_y == pytest.approx(40.0)
+    assert [l.type for l in scene.lights] == ["directional", "directional", "ambient"]  # the default rig
     out = tmp_path / "glb.png"
     assert main(["render", str(glb), "--width", "64", "--height", "64", "--out", str(out)]) == 0
     assert out.is_file()
     obj = tmp_path / "box.obj"
     trimesh.creation.box(extents=(1.0, 2.0, 0.5)).export(obj)
-    s = load_any(obj)
+    s = load(obj)
     # the default camera frames the model: every corner of its box projects inside the image
     lo, hi = s.nodes[0].mesh.bounds()
     corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])

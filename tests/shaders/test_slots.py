@@ -186,6 +186,8 @@ def _configs():
     out += [("presort_cs compute", exact, "presort_cs", {"raster": "compute"})]
     out += [("presort_lf compute 4x merge", merge, "presort_lf_merge2_et", {"raster": "compute"})]
     out.append(("debug views", pipeline_from_text(views, default.source), "presort_lf", {}))
+    # composed over a host's framebuffer (render(..., over_target=True)): the host's depth in and out
+    out += [("over target", default, "presort_lf_et", {}), ("over target 4x", with_samples(exact, 4), "presort_lf", {})]
     out.append(
         ("light grid fallback", pipeline_from_text(text.replace("mode: auto", "mode: fallback")), "presort_lf", {})
     )
@@ -219,6 +221,12 @@ def programs(gl_context, renderer_factory):
         scene = _scene()
         for current["label"], pipeline, method, overrides in _configs():
             r = renderer_factory(pipeline, method=method, method_overrides=overrides or None)
+            if current["label"].startswith("over target"):
+                target = gl_context.framebuffer([gl_context.texture((40, 30), 4)], gl_context.depth_texture((40, 30)))
+                r.render(scene, 40, 30, target=target, over_target=True)
+                for o in (*target.color_attachments, target.depth_attachment, target):
+                    o.release()
+                continue
             target = gl_context.texture((40, 30), 4)
             r.render(scene, 40, 30, target=target)  # drawn into a host texture: the present program too
             target.release()

@@ -388,3 +388,19 @@ def test_wrap_parts_breaks_between_parts():
         " ".join(line.strip(" |") for line in long).split()
         == "status a part much longer than one line of the status".split()
     )
+
+
+def test_overflow_key_with_method_auto(window, scene_file):
+    # `auto` names no method of its own: the overflow mode asks the method auto picked
+    from guaca_py.scene.loader import load_scene
+    from guaca_py.viewer import Viewer
+
+    viewer = Viewer(window.ctx, load_scene(scene_file), method="auto")
+    try:
+        window.use()
+        viewer.key("O")
+        viewer.frame(window.fbo)
+        assert viewer.last_stats["method"] != "auto"
+        assert viewer.last_stats["fragments"].get("overflow", 0) > 0
+    finally:
+        viewer.release()

@@ -1,0 +1,213 @@
+"""The parts of a scene graph: transforms, meshes, material instances, nodes, camera and lights.
+
+`guaca_py.scene.graph` adds the Scene that holds them (and re-exports them); the readers of
+files and trimesh scenes build these parts without depending on the Scene.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from pyglm import glm
+
+_AXES = (glm.dvec3(1.0, 0.0, 0.0), glm.dvec3(0.0, 1.0, 0.0), glm.dvec3(0.0, 0.0, 1.0))
+
+
+def _checked_matrix(matrix) -> np.ndarray:
+    """A 4x4 float64 copy of `matrix` (anything numpy reads: nested lists, arrays, PyGLM matrices)."""
+    m = np.array(matrix, dtype=np.float64)
+    if m.shape == (16,):
+        m = m.reshape(4, 4)
+    if m.shape != (4, 4):
+        raise ValueError(f"a transform matrix is 4x4, got shape {m.shape}")
+    if not np.all(np.isfinite(m)):
+        raise ValueError("a transform matrix must be finite (no NaN or inf)")
+    return m
+
+
+class Transform:
+    """A node's local-to-parent transform: translation, Euler rotation in degrees (applied X, then Y,
+    then Z) and scale; or any 4x4 matrix (`Transform(matrix=m)`, `Transform.from_matrix(m)`).
+
+    A matrix, when given, is the transform: translation, rotation_deg and scale are then unused.
+    It is anything numpy reads as 4x4 (or 16 numbers row by row), acting on column vectors: the
+    translation is column 3, as in trimesh's graph and PyGLM's matrices.
+    """
+
+    def __init__(
+        self,
+        translation: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        rotation_deg: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        scale: tuple[float, float, float] = (1.0, 1.0, 1.0),
+        *,
+        matrix=None,
+    ):
+        self.translation, self.rotation_deg, self.scale = translation, rotation_deg, scale
+        self._matrix = None if matrix is None else _checked_matrix(matrix)
+        self._glm = None if self._matrix is None else glm.dmat4(self._matrix)
+
+    @classmethod
+    def from_matrix(cls, matrix) -> Transform:
+        """A transform given as a 4x4 local-to-parent matrix (e.g. a glTF or trimesh node's)."""
+        return cls(matrix=matrix)
+
+    @property
+    def has_matrix(self) -> bool:
+        """True when the transform was given as a matrix rather than translation, rotation and scale."""
+        return self._matrix is not None
+
+    def glm_matrix(self) -> glm.dmat4:
+        """Local-to-parent matrix as a PyGLM dmat4: T * Rz * Ry * Rx * S, or the given matrix."""
+        if self._glm is not None:
+            return self._glm
+        rx, ry, rz = (math.radians(v) for v in self.rotation_deg)
+        m = glm.translate(glm.dvec3(*self.translation))
+        m = glm.rotate(m, rz, _AXES[2])
+        m = glm.rotate(m, ry, _AXES[1])
+        m = glm.rotate(m, rx, _AXES[0])
+        return glm.scale(m, glm.dvec3(*self.scale))
+
+    def matrix(self) -> np.ndarray:
+        """Local-to-parent 4x4 float64 matrix: T * Rz * Ry * Rx * S (column vectors), or the given matrix."""
+        return self._matrix.copy() if self._matrix is not None else np.array(self.glm_matrix())
+
+    def key(self) -> tuple:
+        """Hashable key of the transform's values (caches compare values, never object identity)."""
+        if self._matrix is not None:
+            return ("matrix", self._matrix.tobytes())
+        return (_freeze(self.translation), _freeze(self.rotation_deg), _freeze(self.scale))
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, Transform) and self.key() == other.key()
+
+    __hash__ = None  # mutable, like the dataclass it replaced
+
+    def __repr__(self) -> str:
+        if self._matrix is not None:
+            return f"Transform(matrix={self._matrix.tolist()})"
+        return f"Transform(translation={self.translation}, rotation_deg={self.rotation_deg}, scale={self.scale})"
+
+
+def _freeze(v) -> tuple:
+    """A 3-vector as a hashable tuple (tuples as they are: the common case, once a node a frame)."""
+    return v if type(v) is tuple else tuple(float(x) for x in v)
+
+
+@dataclass
+class MeshData:
+    """Indexed triangle mesh in object space; normals and texcoords are always present."""
+
+    positions: np.ndarray  # (N, 3) float32
+    normals: np.ndarray  # (N, 3) float32, unit length
+    texcoords: np.ndarray  # (N, 2) float32
+    indices: np.ndarray  # (M, 3) uint32
+    name: str = "mesh"
+
+    @property
+    def triangle_count(self) -> int:
+        """Number of triangles."""
+        return int(self.indices.shape[0])
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Axis-aligned (min, max) corners in object space."""
+        return self.positions.min(axis=0), self.positions.max(axis=0)
+
+
+@dataclass
+class MaterialInstance:
+    """A material description (by name) plus per-instance uniform overrides."""
+
+    description: str = "unlit"
+    uniforms: dict = field(default_factory=dict)
+
+
+@dataclass
+class Node:
+    """A scene-graph node: transform, optional mesh+material, children."""
+
+    name: str = "node"
+    transform: Transform = field(default_factory=Transform)
+    mesh: MeshData | None = None
+    material: MaterialInstance | None = None
+    children: list[Node] = field(default_factory=list)
+
+    def walk(self, parent: np.ndarray | None = None):
+        """Yield (node, world matrix) for this node and all descendants, depth first, in order."""
+        for node, world in self._walk(None if parent is None else glm.dmat4(np.asarray(parent, dtype=np.float64))):
+            yield node, np.array(world)
+
+    def _walk(self, parent: glm.dmat4 | None):
+        """(node, PyGLM world matrix) pairs: the products stay in PyGLM, numpy only at the boundary."""
+        local = self.transform.glm_matrix()
+        world = local if parent is None else parent * local
+        yield self, world
+        for child in self.children:
+            yield from child._walk(world)
+
+
+@dataclass
+class Camera:
+    """Right-handed look-at camera; fov_y is the vertical field of view in degrees."""
+
+    position: tuple[float, float, float] = (0.0, 1.0, 5.0)
+    target: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    up: tuple[float, float, float] = (0.0, 1.0, 0.0)
+    fov_y: float = 60.0
+    near: float = 0.1
+    far: float = 100.0
+
+    def view_matrix(self) -> np.ndarray:
+        """World-to-view 4x4 float64 matrix (camera looks down -Z)."""
+        eye, target, up = (glm.dvec3(*v) for v in (self.position, self.target, self.up))
+        return np.array(glm.lookAtRH(eye, target, up))
+
+    def projection_matrix(self, aspect: float) -> np.ndarray:
+        """OpenGL perspective 4x4 matrix (clip z in [-w, w]) as float64; its values are float32, what GL receives."""
+        # PyGLM builds projections in single precision only; the GPU reads them so anyway
+        m = glm.perspectiveRH_NO(math.radians(self.fov_y), float(aspect), float(self.near), float(self.far))
+        return np.array(m, dtype=np.float64)
+
+
+LIGHT_TYPES = ("point", "spot", "directional", "ambient")
+#: farthest a scene's coordinates may reach from the origin: float32 positions step by 1 at 1.7e7,
+#: and llvmpipe's clipper drops triangles past ~1e8 (the loader checks scales, the draw list extents)
+MAX_WORLD = 1.0e7
+
+
+@dataclass
+class Light:
+    """A point, spot, directional or ambient light. Color is linear RGB; intensity scales it.
+
+    Point/spot lights have a finite range `radius` with a smooth falloff to zero there;
+    spot lights use `direction` and inner/outer cone half-angles in degrees; directional
+    lights use `direction` (the direction light travels) and ignore position and radius;
+    an ambient light is light arriving equally from every direction (a surface reflects
+    color * intensity * its albedo) and uses neither position, direction nor radius.
+    """
+
+    type: str = "point"
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    direction: tuple[float, float, float] = (0.0, -1.0, 0.0)
+    color: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    intensity: float = 1.0
+    radius: float = 10.0
+    inner_angle_deg: float = 20.0
+    outer_angle_deg: float = 30.0
+
+
+def scene_bounds(nodes: list[Node]) -> tuple[np.ndarray, np.ndarray]:
+    """World-space axis-aligned bounds of every mesh under `nodes`."""
+    corners = []
+    for root in nodes:
+        for node, world in root.walk():
+            if node.mesh is None:
+                continue
+            lo, hi = node.mesh.bounds()
+            box = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+            corners.append((box @ world.T)[:, :3])
+    if not corners:
+        return np.zeros(3), np.zeros(3)
+    pts = np.vstack(corners)
+    return pts.min(axis=0), pts.max(axis=0)
