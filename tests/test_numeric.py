@@ -65,3 +65,10 @@ def test_settings_take_numpy_numbers_and_refuse_what_the_gpu_cannot_hold():
     assert Setting((int,), 1).validate(10**11).endswith("beyond the 32-bit integer range [-2147483648, 2147483647]")
     assert Setting(NUMBER, 1.0).validate(math.inf) == "must be a finite number, got inf"
     assert Setting(NUMBER, 1.0).validate(10**11) is None  # a number setting may be a large int
+
+
+def test_quoted_numbers_are_told_to_lose_their_quotes():
+    assert yaml_number_hint("2.2") == "'2.2' is quoted, so it is text: write it without quotes"
+    assert yaml_number_hint("-12") == "'-12' is quoted, so it is text: write it without quotes"
+    assert yaml_number_hint("0808") == "write a plain number like 808"  # not octal, not a YAML number either
+    assert yaml_number_hint("1.5E3").startswith("YAML reads '1.5E3' as text")  # no signed exponent
