@@ -37,8 +37,10 @@ from .errors import ConfigError
 PARSER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 MAX_NESTING = 64  # pipeline YAML and material JSON are shallow; deeper means a generated mistake
-#: levels of YAML collections in a scene: each level of scene nodes takes two (a node, its children)
-MAX_YAML_DEPTH = 256
+#: levels of YAML collections in a scene: each level of scene nodes takes two (a node, its children),
+#: so 100 levels of nodes with their contents take 206; no more, as the scene loader reads values
+#: recursively, about four Python frames per level
+MAX_YAML_DEPTH = 208
 MAX_ALIAS_USES = 1_000_000
 #: nodes that aliases may repeat in all: this many, or one per character of a larger file
 ALIAS_EXPANSION_FLOOR = 100_000

@@ -90,7 +90,7 @@ def _deep_scene(levels: int) -> str:
 @pytest.mark.parametrize(
     "text,needles",
     [
-        (_deep_scene(120), ["nested deeper than 100 levels", "flatten", "'nodes[0].(...99 levels...).children[0]'"]),
+        (_deep_scene(101), ["nested deeper than 100 levels", "flatten", "'nodes[0].(...99 levels...).children[0]'"]),
         ("nodes:\n  - &a\n    name: loop\n    children: [*a]\n", ["cycle", ":2", "nodes[0].children[0]"]),
         (scene_text(camera="{near: 1.0e-30, far: 100}"), ["far / near", "raise near to at least 5.96e-06"]),
         (scene_text(camera="{near: 1.0e-6, far: 100}"), ["exhausts the 24-bit depth buffer", "collapse"]),

@@ -312,6 +312,25 @@ def test_scene_yaml_nesting_bounded():
     assert err.value.line == 2 and err.value.key.startswith("nodes[0]")
 
 
+@pytest.mark.parametrize(
+    "node",
+    [
+        "{mesh: {primitive: box, size: %s}}",
+        "{mesh: {primitive: box}, material: {description: pbr, uniforms: {albedo: %s}}}",
+    ],
+)
+def test_scene_values_nested_to_the_bound_are_refused_not_recursed(node):
+    """The scene reader reads values recursively: the YAML bound keeps it within Python's recursion limit."""
+    from guaca_py.scene.loader import load_scene_text
+    from guaca_py.yaml_source import MAX_YAML_DEPTH
+
+    for levels in (MAX_YAML_DEPTH - 4, MAX_YAML_DEPTH):  # the deepest the bound lets through, and past it
+        value = "[" * levels + "1" + "]" * levels
+        with pytest.raises(ConfigError) as err:
+            load_scene_text("nodes:\n  - " + node % value + "\n", "s.yaml")
+        assert "duplicate" not in str(err.value) and err.value.line == 2
+
+
 @pytest.mark.parametrize("levels", [3_000, 100_000])
 def test_runaway_flow_nesting_is_a_located_error(levels):
     """libyaml 0.2.6 refuses flow nesting past 1,000 while scanning, older ones leave it to the composer's bound."""
