@@ -297,6 +297,9 @@ def fuzz(request, gl_context, tmp_path_factory):
     examples = request.config.getoption("--fuzz-examples")
     chosen = request.config.getoption("--fuzz-seed")
     root = tmp_path_factory.mktemp("fuzz")
+    from hypothesis.configuration import set_hypothesis_home_dir
+
+    set_hypothesis_home_dir(root / ".hypothesis")  # its caches go with the cases, not into the tree
     for name in FIFO_NAMES:  # paths a mutation may name: opening them must not block
         os.mkfifo(root / name)
     cases = iter(range(10**9))
