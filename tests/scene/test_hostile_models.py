@@ -1,0 +1,289 @@
+"""Hostile glTF, mesh and texture files: each is refused with an error naming the file and object, or warned."""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import math
+import os
+import struct
+import zlib
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from guaca_py.cli import main
+from guaca_py.errors import ConfigError
+from guaca_py.scene.gltf import MAX_NODE_DEPTH, load_gltf
+from guaca_py.scene.texture import MAX_TEXTURE_SIDE, decode_image
+
+
+def _data_uri(data: bytes) -> str:
+    return "data:application/octet-stream;base64," + base64.b64encode(data).decode()
+
+
+def quad_doc(indices=(0, 1, 2, 0, 2, 3), mode: int | None = None) -> dict:
+    """A glTF document with one unit quad (positions and uint16 indices in a data: buffer)."""
+    pos = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], np.float32).tobytes()
+    idx = np.array(indices, np.uint16).tobytes()
+    prim = {"attributes": {"POSITION": 0}, "indices": 1}
+    if mode is not None:
+        prim["mode"] = mode
+    return {
+        "asset": {"version": "2.0"},
+        "buffers": [{"byteLength": len(pos + idx), "uri": _data_uri(pos + idx)}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": len(pos)},
+            {"buffer": 0, "byteOffset": len(pos), "byteLength": len(idx)},
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [-1, -1, 0], "max": [1, 1, 0]},
+            {"bufferView": 1, "componentType": 5123, "count": len(indices), "type": "SCALAR"},
+        ],
+        "meshes": [{"primitives": [prim]}],
+        "nodes": [{"mesh": 0}],
+        "scenes": [{"nodes": [0]}],
+        "scene": 0,
+    }
+
+
+def write(tmp_path, doc: dict, name: str = "m.gltf"):
+    path = tmp_path / name
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def refused(path, *fragments: str) -> ConfigError:
+    with pytest.raises(ConfigError) as info:
+        load_gltf(path)
+    text = str(info.value)
+    assert path.name in text
+    for fragment in fragments:
+        assert fragment in text, text
+    return info.value
+
+
+def with_camera(yfov=0.8, znear=0.1, zfar=100.0, node=None) -> dict:
+    doc = quad_doc()
+    persp = {"yfov": yfov, "znear": znear}
+    if zfar is not None:
+        persp["zfar"] = zfar
+    doc["cameras"] = [{"type": "perspective", "perspective": persp}]
+    doc["nodes"].append({"camera": 0, "translation": [0, 0, 5], **(node or {})})
+    doc["scenes"][0]["nodes"].append(1)
+    return doc
+
+
+def test_valid_quad_loads(tmp_path):
+    content = load_gltf(write(tmp_path, quad_doc()))
+    assert [m.indices.shape for m in content.meshes.values()] == [(2, 3)]
+
+
+@pytest.mark.parametrize("mode", [5, 6])
+def test_triangle_strips_and_fans_are_triangulated(tmp_path, mode):
+    content = load_gltf(write(tmp_path, quad_doc(indices=(0, 1, 3, 2) if mode == 5 else (0, 1, 2, 3), mode=mode)))
+    (mesh,) = content.meshes.values()
+    expected = [[0, 1, 3], [3, 1, 2]] if mode == 5 else [[0, 1, 2], [0, 2, 3]]
+    assert mesh.indices.tolist() == expected
+
+
+def test_fan_in_a_glb_is_triangulated(tmp_path):
+    doc = quad_doc(indices=(0, 1, 2, 3), mode=6)
+    binary = base64.b64decode(doc["buffers"][0].pop("uri").split(",", 1)[1])
+    text = json.dumps(doc).encode()
+    text += b" " * (-len(text) % 4)
+    body = struct.pack("<II", len(text), 0x4E4F534A) + text + struct.pack("<II", len(binary), 0x004E4942) + binary
+    path = tmp_path / "fan.glb"
+    path.write_bytes(struct.pack("<III", 0x46546C67, 2, 12 + len(body)) + body)
+    (mesh,) = load_gltf(path).meshes.values()
+    assert mesh.indices.tolist() == [[0, 1, 2], [0, 2, 3]]
+
+
+def test_node_cycle_is_refused(tmp_path):
+    doc = quad_doc()
+    doc["nodes"] = [{"mesh": 0, "children": [1]}, {"children": [0]}]
+    refused(write(tmp_path, doc), "is its own ancestor (a cycle)")
+
+
+def test_node_that_is_its_own_child_is_refused(tmp_path):
+    doc = quad_doc()
+    doc["nodes"][0]["children"] = [0]
+    refused(write(tmp_path, doc), "nodes[0] is its own child")
+
+
+def test_pure_cycle_without_root_is_refused(tmp_path):
+    doc = quad_doc()
+    doc["nodes"] = [{"mesh": 0, "children": [1]}, {"children": [2]}, {"children": [0]}]
+    refused(write(tmp_path, doc), "cycle")
+
+
+def test_deep_chain_is_refused_without_recursion_error(tmp_path):
+    doc = quad_doc()
+    doc["nodes"] = [{"children": [i + 1]} for i in range(2999)] + [{"mesh": 0}]
+    refused(write(tmp_path, doc), f"more than {MAX_NODE_DEPTH} levels deep")
+
+
+def test_chain_within_the_bound_loads(tmp_path):
+    doc = quad_doc()
+    doc["nodes"] = [{"children": [i + 1]} for i in range(50)] + [{"mesh": 0}]
+    assert load_gltf(write(tmp_path, doc)).nodes
+
+
+@pytest.mark.parametrize(
+    ("camera", "fragment"),
+    [
+        ({"yfov": 0}, "yfov = 0"),
+        ({"yfov": math.pi}, "yfov"),
+        ({"yfov": -0.5}, "yfov = -0.5"),
+        ({"znear": -0.1}, "znear = -0.1"),
+        ({"znear": 1e-9, "zfar": 1e9}, "exhausts"),
+        ({"zfar": 0.05}, "zfar = 0.05"),
+    ],
+)
+def test_bad_camera_numbers_are_refused(tmp_path, camera, fragment):
+    refused(write(tmp_path, with_camera(**camera)), "nodes[1].camera", fragment)
+
+
+def test_camera_node_with_nan_is_refused(tmp_path):
+    path = tmp_path / "m.gltf"
+    path.write_text(json.dumps(with_camera(node={"translation": [0, 0, 5]})).replace("[0, 0, 5]", "[0, NaN, 5]"))
+    refused(path, "nodes[1].translation")
+
+
+def test_camera_node_scaled_to_zero_warns(tmp_path):
+    with pytest.warns(UserWarning, match="scaled to zero"):
+        content = load_gltf(write(tmp_path, with_camera(node={"scale": [0, 0, 0]})))
+    assert content.camera is None
+
+
+def test_mesh_node_scaled_to_zero_warns_and_renders(tmp_path):
+    doc = quad_doc()
+    doc["nodes"][0]["scale"] = [0, 0, 0]
+    path = write(tmp_path, doc)
+    with pytest.warns(UserWarning, match=r"nodes\[0\] is scaled to zero"):
+        rc = main(["render", str(path), "--width", "32", "--height", "32", "--out", str(tmp_path / "o.png")])
+    assert rc == 0
+
+
+def test_unknown_required_extension_is_refused(tmp_path):
+    doc = quad_doc()
+    doc["extensionsUsed"] = doc["extensionsRequired"] = ["EXT_made_up"]
+    refused(write(tmp_path, doc), "EXT_made_up")
+
+
+def test_sparse_accessor_is_refused_clearly(tmp_path):
+    doc = quad_doc()
+    doc["accessors"][0]["sparse"] = {"count": 1, "indices": {}, "values": {}}
+    refused(write(tmp_path, doc), "accessors[0] is a sparse accessor")
+
+
+@pytest.mark.parametrize("factor", ["[1, 1, 1, NaN]", "[NaN, 0, 0, 1]", "[1, 1, 1, 2]"])
+def test_nan_or_out_of_range_base_colour_is_refused(tmp_path, factor):
+    doc = quad_doc()
+    doc["materials"] = [{"pbrMetallicRoughness": {"baseColorFactor": "FACTOR"}}]
+    doc["meshes"][0]["primitives"][0]["material"] = 0
+    path = tmp_path / "m.gltf"
+    path.write_text(json.dumps(doc).replace('"FACTOR"', factor))
+    refused(path, "materials[0].pbrMetallicRoughness.baseColorFactor")
+
+
+def test_glb_whose_json_chunk_claims_too_much_names_the_file(tmp_path):
+    path = tmp_path / "big.glb"
+    path.write_bytes(struct.pack("<III", 0x46546C67, 2, 40) + struct.pack("<II", 10**9, 0x4E4F534A) + b"{}" * 10)
+    refused(path, "claims")
+
+
+def test_buffer_uri_naming_a_fifo_is_refused_without_blocking(tmp_path):
+    os.mkfifo(tmp_path / "pipe.bin")
+    doc = quad_doc()
+    doc["buffers"][0]["uri"] = "pipe.bin"
+    refused(write(tmp_path, doc), "buffers[0].uri", "FIFO")
+
+
+@pytest.mark.parametrize(("uri", "fragment"), [("a\0b.bin", "NUL"), ("loop.bin", "symbolic links"), (".", "directory")])
+def test_buffer_uri_that_is_no_regular_file_is_refused(tmp_path, uri, fragment):
+    (tmp_path / "loop.bin").symlink_to(tmp_path / "loop.bin")
+    doc = quad_doc()
+    doc["buffers"][0]["uri"] = uri
+    refused(write(tmp_path, doc), "buffers[0].uri", fragment)
+
+
+def _textured(tmp_path, image_bytes: bytes | None, uri: str | None = None) -> dict:
+    doc = quad_doc()
+    doc["images"] = [{"uri": uri} if uri else {"uri": _data_uri(b"")}]
+    if image_bytes is not None:
+        (tmp_path / "t.png").write_bytes(image_bytes)
+        doc["images"] = [{"uri": "t.png"}]
+    doc["textures"] = [{"source": 0}]
+    doc["materials"] = [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]
+    doc["meshes"][0]["primitives"][0]["material"] = 0
+    return doc
+
+
+def _png(mode: str, size=(4, 4), value=0) -> bytes:
+    out = io.BytesIO()
+    Image.new(mode, size, value).save(out, "PNG")
+    return out.getvalue()
+
+
+@pytest.mark.parametrize(
+    ("data", "fragment"),
+    [
+        (b"this is text", "not a readable image"),
+        (b"", "is empty"),
+        (_png("RGB")[:40], "not a readable image"),
+    ],
+)
+def test_bad_texture_is_a_located_error(tmp_path, data, fragment):
+    refused(write(tmp_path, _textured(tmp_path, data)), "images[0]", fragment)
+
+
+def test_texture_with_corrupt_zlib_data_is_a_located_error(tmp_path):
+    png = bytearray(_png("RGB", (64, 64), (200, 10, 10)))
+    at = png.index(b"IDAT") + 4
+    png[at + 2 : at + 12] = b"\xff" * 10
+    refused(write(tmp_path, _textured(tmp_path, bytes(png))), "images[0]")
+
+
+def _bomb_png(side: int) -> bytes:
+    """A PNG header claiming side x side greyscale pixels with one tiny IDAT: the size is in the header."""
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    ihdr = struct.pack(">IIBBBBB", side, side, 8, 0, 0, 0, 0)
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(b"\0" * 64)) + chunk(b"IEND", b"")
+
+
+def test_texture_past_the_size_bound_is_refused_before_decoding(tmp_path):
+    refused(write(tmp_path, _textured(tmp_path, _bomb_png(MAX_TEXTURE_SIDE + 1))), "images[0]", f"{MAX_TEXTURE_SIDE}")
+    with pytest.raises(ValueError, match="too many pixels"):
+        decode_image(_bomb_png(60000), "bomb")
+    wide = io.BytesIO()
+    Image.new("L", (MAX_TEXTURE_SIDE + 1, 1)).save(wide, "PNG")
+    with pytest.raises(ValueError, match=f"is {MAX_TEXTURE_SIDE + 1}x1; the largest read is {MAX_TEXTURE_SIDE}x"):
+        decode_image(wide.getvalue(), "wide")
+
+
+def test_sixteen_bit_grey_png_reads_scaled_not_white():
+    out = io.BytesIO()
+    Image.fromarray(np.full((2, 2), 32896, np.uint16)).save(out, "PNG")  # 0x8080: half grey
+    px = decode_image(out.getvalue(), "grey16")
+    assert px.shape == (2, 2, 4)
+    assert px[0, 0].tolist() == [128, 128, 128, 255]
+
+
+def test_grey_alpha_png_keeps_its_alpha():
+    px = decode_image(_png("LA", (2, 2), (100, 50)), "la")
+    assert px[0, 0].tolist() == [100, 100, 100, 50]
+
+
+def test_cli_exits_2_naming_the_file_and_object(tmp_path, capsys):
+    path = write(tmp_path, with_camera(yfov=0))
+    rc = main(["render", str(path), "--width", "32", "--height", "32", "--out", str(tmp_path / "o.png")])
+    err = capsys.readouterr().err
+    assert rc == 2
+    assert "m.gltf" in err and "nodes[1].camera" in err and "Traceback" not in err
+    assert not (tmp_path / "o.png").exists()
