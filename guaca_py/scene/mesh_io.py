@@ -108,6 +108,101 @@ def _texcoords(mesh, count: int) -> np.ndarray:
 _TEXT_FORMATS = (".obj", ".off")  # text formats whose non-UTF-8 bytes send trimesh to an undeclared charset detector
 
 
+def _side_file(path: Path, where: str, fail: Callable[[str, str], ConfigError]) -> None:
+    """Refuse a file an OBJ or MTL names when it exists but is no regular file (a FIFO would block forever).
+
+    A missing one is left to trimesh, which draws the mesh without it.
+    """
+    problem = file_problem(path)
+    if problem is not None and problem != "not found":
+        raise fail(f"{where} {problem}: {os.fspath(path)!r}", "name a regular file")
+
+
+def _named_files(line: str, base: Path) -> list[Path]:
+    """The files an `mtllib` or `map_*` line names: the whole rest of the line when it names a file, else each word."""
+    rest = line.split(None, 1)[1].strip() if len(line.split(None, 1)) > 1 else ""
+    if not rest:
+        return []
+    whole = base / rest
+    return [whole] if file_problem(whole) is None else [base / word for word in rest.split()]
+
+
+def check_mesh_source(p: Path, fail: Callable[[str, str], ConfigError]) -> None:
+    """What trimesh would read wrongly or hang on: an OBJ's face index 0 and its side files, a binary STL's count."""
+    suffix = p.suffix.lower()
+    if suffix == ".stl":
+        _check_stl(p, fail)
+    if suffix != ".obj":
+        return
+    text = p.read_bytes().decode("latin-1")
+    for number, line in enumerate(text.splitlines(), 1):
+        word = line.split(None, 1)[0] if line.strip() else ""
+        if word == "f":
+            for ref in line.split()[1:]:
+                first = ref.split("/", 1)[0]
+                if first.lstrip("-").isdigit() and int(first) == 0:
+                    raise fail(
+                        f"{p}:{number}: face index 0 (OBJ indices start at 1)", "repair the mesh in a modelling tool"
+                    )
+        elif word == "mtllib":
+            for mtl in _named_files(line, p.parent):
+                _side_file(mtl, f"{p}:{number}: mtllib", fail)
+                if file_problem(mtl) is None:
+                    _check_mtl(mtl, fail)
+
+
+def _check_mtl(mtl: Path, fail: Callable[[str, str], ConfigError]) -> None:
+    """Texture maps an MTL names must be regular files where they exist."""
+    for number, line in enumerate(mtl.read_bytes().decode("latin-1").splitlines(), 1):
+        word = line.split(None, 1)[0].lower() if line.strip() else ""
+        if word.startswith("map_") or word in ("bump", "disp", "decal", "refl"):
+            parts = line.split()
+            if len(parts) > 1:
+                _side_file(mtl.parent / parts[-1], f"{mtl}:{number}: {word}", fail)
+
+
+def _check_stl(p: Path, fail: Callable[[str, str], ConfigError]) -> None:
+    """A binary STL's triangle count must match the file's size (a header claiming 2**31 is not read)."""
+    size = p.stat().st_size
+    with p.open("rb") as f:
+        head = f.read(84)
+    if size < 84 or head[:5].lower() == b"solid" and b"\0" not in head[:80]:
+        return  # ASCII STL (or too short for binary): trimesh parses the text
+    count = int.from_bytes(head[80:84], "little")
+    if 84 + 50 * count != size:
+        raise fail(
+            f"{p}: its binary STL header claims {count} triangles ({84 + 50 * count} bytes) but the file has {size} bytes",
+            "the file is truncated or not an STL file; export it again",
+        )
+
+
+def check_finite(loaded, p: Path, fail: Callable[[str, str], ConfigError]) -> None:
+    """Refuse non-finite vertices before trimesh's processing drops them (and their triangles) silently."""
+    geoms = loaded.geometry.values() if hasattr(loaded, "geometry") else [loaded]
+    for geom in geoms:
+        vertices = getattr(geom, "vertices", None)
+        if vertices is not None and len(vertices) and not np.isfinite(np.asarray(vertices, dtype=np.float64)).all():
+            bad = int((~np.isfinite(np.asarray(vertices, dtype=np.float64))).any(axis=1).sum())
+            raise fail(
+                f"{p} has {bad} non-finite vertex position{'s' if bad != 1 else ''} (NaN or inf)",
+                "repair the mesh in a modelling tool",
+            )
+
+
+def load_checked(p: Path, trimesh, fail: Callable[[str, str], ConfigError], **kwargs):
+    """trimesh.load of a mesh file with its source checked first and its raw vertices checked before processing."""
+    check_mesh_source(p, fail)
+    try:
+        loaded = trimesh.load(**trimesh_load_args(p, trimesh), process=False, **kwargs)
+    except Exception as exc:  # trimesh raises many types for unreadable input; all mean "bad file"
+        raise fail(f"cannot read mesh file {p}: {exc}", MESH_FORMATS_HINT) from exc
+    check_finite(loaded, p, fail)
+    for geom in loaded.geometry.values() if hasattr(loaded, "geometry") else [loaded]:
+        if hasattr(geom, "process") and hasattr(geom, "faces"):
+            geom.process()  # what trimesh.load(process=True) does: merge duplicate vertices
+    return loaded
+
+
 def trimesh_load_args(p: Path, trimesh) -> dict:
     """trimesh.load arguments; text files that are not UTF-8 are decoded as Latin-1 here.
 
@@ -135,15 +230,8 @@ def load_mesh_file(
 
     p = Path(path)
     fail = file_error(p, file_for_errors, line, key)
-    if not p.is_file():
-        what = "is a directory, not a mesh file" if p.is_dir() else "not found"
-        raise fail(
-            f"mesh file {what}: {p}", "check the path; relative paths are resolved against the scene file's directory"
-        )
-    try:
-        loaded = trimesh.load(**trimesh_load_args(p, trimesh))
-    except Exception as exc:  # trimesh raises many types for unreadable input; all mean "bad file"
-        raise fail(f"cannot read mesh file {p}: {exc}", MESH_FORMATS_HINT) from exc
+    check_file(p, fail, "mesh file")
+    loaded = load_checked(p, trimesh, fail)
 
     if isinstance(loaded, trimesh.Scene):
         parts = [g for g in loaded.geometry.values() if isinstance(g, trimesh.Trimesh) and len(g.faces)]

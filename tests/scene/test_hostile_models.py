@@ -287,3 +287,92 @@ def test_cli_exits_2_naming_the_file_and_object(tmp_path, capsys):
     assert rc == 2
     assert "m.gltf" in err and "nodes[1].camera" in err and "Traceback" not in err
     assert not (tmp_path / "o.png").exists()
+
+
+def load_mesh(path):
+    from guaca_py import load
+
+    return load(path)
+
+
+def mesh_refused(path, *fragments: str) -> None:
+    with pytest.raises(ConfigError) as info:
+        load_mesh(path)
+    text = str(info.value)
+    assert path.name in text, text
+    for fragment in fragments:
+        assert fragment in text, text
+
+
+TRI = "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
+
+
+def test_obj_with_one_nan_vertex_is_refused(tmp_path):
+    path = tmp_path / "n.obj"
+    path.write_text(TRI + "v nan 0 0\nv 1 1 0\nf 1 2 3\nf 2 4 5\n")
+    mesh_refused(path, "1 non-finite vertex position (NaN or inf)")
+
+
+def test_obj_with_only_nan_vertices_says_so(tmp_path):
+    path = tmp_path / "n.obj"
+    path.write_text("v nan 0 0\nv 0 nan 0\nv 0 0 nan\nf 1 2 3\n")
+    mesh_refused(path, "non-finite vertex")
+
+
+def test_obj_face_index_zero_is_refused(tmp_path):
+    path = tmp_path / "z.obj"
+    path.write_text(TRI + "f 0 1 2\n")
+    mesh_refused(path, "z.obj:4", "face index 0")
+
+
+def test_obj_mtllib_naming_a_fifo_is_refused_without_blocking(tmp_path):
+    os.mkfifo(tmp_path / "pipe.mtl")
+    path = tmp_path / "m.obj"
+    path.write_text("mtllib pipe.mtl\n" + TRI + "f 1 2 3\n")
+    mesh_refused(path, "mtllib", "FIFO")
+
+
+def test_mtl_texture_naming_a_fifo_is_refused(tmp_path):
+    os.mkfifo(tmp_path / "pipe.png")
+    (tmp_path / "m.mtl").write_text("newmtl a\nKd 1 1 1\nmap_Kd pipe.png\n")
+    path = tmp_path / "m.obj"
+    path.write_text("mtllib m.mtl\n" + TRI + "usemtl a\nf 1 2 3\n")
+    mesh_refused(path, "map_kd", "FIFO")
+
+
+def test_obj_with_missing_mtllib_still_loads(tmp_path):
+    path = tmp_path / "m.obj"
+    path.write_text("mtllib gone.mtl\n" + TRI + "f 1 2 3\n")
+    assert load_mesh(path).nodes
+
+
+def test_mesh_file_that_is_a_fifo_is_refused(tmp_path):
+    from guaca_py.scene.files import load_model
+    from guaca_py.scene.mesh_io import load_mesh_file
+
+    os.mkfifo(tmp_path / "pipe.obj")
+    for reader in (load_model, load_mesh_file):
+        with pytest.raises(ConfigError, match="mesh file is a FIFO, not a regular file"):
+            reader(tmp_path / "pipe.obj")
+
+
+def test_stl_header_claiming_two_billion_triangles_names_the_file(tmp_path):
+    path = tmp_path / "big.stl"
+    path.write_bytes(b"\0" * 80 + struct.pack("<I", 2**31) + b"\0" * 100)
+    mesh_refused(path, "claims 2147483648 triangles")
+
+
+def test_valid_binary_stl_loads(tmp_path):
+    tri = struct.pack("<12fH", 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0)
+    path = tmp_path / "ok.stl"
+    path.write_bytes(b"\0" * 80 + struct.pack("<I", 1) + tri)
+    assert load_mesh(path).nodes
+
+
+def test_scene_texture_16_bit_grey_and_fifo(tmp_path, capsys):
+    from guaca_py.scene.mesh_io import file_problem
+
+    os.mkfifo(tmp_path / "pipe.png")
+    assert file_problem(tmp_path / "pipe.png") == "is a FIFO, not a regular file"
+    assert file_problem(str(tmp_path / "a\0b")) == "contains a NUL character"
+    assert file_problem("/dev/null") == "is a device, not a regular file"
