@@ -11,6 +11,7 @@ scaled or moved parent would look from the wrong place).
 
 from __future__ import annotations
 
+import base64
 import json
 import math
 import struct
@@ -251,7 +252,6 @@ _COMPONENT = {5121: np.uint8, 5123: np.uint16, 5125: np.uint32}  # index compone
 
 def _buffer_bytes(p: Path, doc: dict, binary: bytes | None, i: int) -> bytes:
     """The bytes of buffers[i]: the GLB binary chunk, a data: URI, or a local file (already checked)."""
-    import base64
     from urllib.parse import unquote
 
     buf = doc["buffers"][i]
@@ -290,7 +290,6 @@ def _strip_and_fan_indices(p: Path, doc: dict, binary: bytes | None, prim: dict,
 
 def _triangulated(p: Path, doc: dict, binary: bytes | None, fail) -> dict | None:
     """A copy of `doc` whose strip and fan primitives are triangle lists (in a data: buffer), or None when none are."""
-    import base64
     import copy
 
     found = [
@@ -361,17 +360,23 @@ def _check_images(p: Path, doc: dict, binary: bytes | None, fail) -> None:
         where = f"images[{i}]" + (f" ({image['name']})" if isinstance(image.get("name"), str) else "")
         if "uri" in image:
             source = _check_uri(image["uri"], p.parent, f"images[{i}].uri", fail)
-            if source is None:
-                continue  # a data: URI; trimesh decodes it (its size is bounded by the file's)
+            if source is None:  # a data: URI: decoded here too, a small one can claim a huge image
+                try:
+                    source = base64.b64decode(image["uri"].split(",", 1)[1])
+                except (IndexError, ValueError):
+                    raise fail(f"images[{i}].uri is not a base64 data: URI", "export the file again") from None
         elif "bufferView" in image:
             v = _index(image["bufferView"], len(views), f"images[{i}].bufferView", fail)
             view = views[v]
-            if view.get("buffer", 0) != 0 or binary is None:
-                continue  # an external buffer: checked as a file above, trimesh reads it
+            b = _index(view.get("buffer", 0), len(doc.get("buffers", [])), f"bufferViews[{v}].buffer", fail)
+            try:
+                data = _buffer_bytes(p, doc, binary, b)
+            except (OSError, ValueError, IndexError) as exc:
+                raise fail(f"buffers[{b}] (of {where}) cannot be read: {exc}", "export the file again") from None
             start, length = view.get("byteOffset", 0), view.get("byteLength", 0)
-            if not (_finite(start) and _finite(length)) or start < 0 or length < 0 or start + length > len(binary):
-                raise fail(f"bufferViews[{v}] (of {where}) lies outside the binary chunk", "export the file again")
-            source = binary[int(start) : int(start + length)]
+            if not (_finite(start) and _finite(length)) or start < 0 or length < 0 or start + length > len(data):
+                raise fail(f"bufferViews[{v}] (of {where}) lies outside its buffer", "export the file again")
+            source = data[int(start) : int(start + length)]
         else:
             continue
         try:

@@ -267,6 +267,26 @@ def test_texture_past_the_size_bound_is_refused_before_decoding(tmp_path):
         decode_image(wide.getvalue(), "wide")
 
 
+def test_image_in_a_data_uri_is_bounded_too(tmp_path):
+    doc = _textured(tmp_path, None)
+    doc["images"] = [{"uri": "data:image/png;base64," + base64.b64encode(_bomb_png(60000)).decode()}]
+    refused(write(tmp_path, doc), "images[0]", "too many pixels")
+
+
+def test_image_in_a_buffer_view_is_checked(tmp_path):
+    doc = _textured(tmp_path, None)
+    junk = b"not an image at all"
+    doc["buffers"].append({"byteLength": len(junk), "uri": _data_uri(junk)})
+    doc["bufferViews"].append({"buffer": 1, "byteLength": len(junk)})
+    doc["images"] = [{"bufferView": 2, "mimeType": "image/png", "name": "albedo"}]
+    refused(write(tmp_path, doc), "images[0] (albedo)", "not a readable image")
+
+
+def test_gltf_path_with_nul_is_refused(tmp_path):
+    with pytest.raises(ConfigError, match="NUL"):
+        load_gltf(str(tmp_path / "a\0b.gltf"))
+
+
 def test_sixteen_bit_grey_png_reads_scaled_not_white():
     out = io.BytesIO()
     Image.fromarray(np.full((2, 2), 32896, np.uint16)).save(out, "PNG")  # 0x8080: half grey
