@@ -389,10 +389,55 @@ def test_valid_binary_stl_loads(tmp_path):
     assert load_mesh(path).nodes
 
 
-def test_scene_texture_16_bit_grey_and_fifo(tmp_path, capsys):
+def test_file_problem_names_fifos_nul_and_devices(tmp_path):
     from guaca_py.scene.mesh_io import file_problem
 
     os.mkfifo(tmp_path / "pipe.png")
     assert file_problem(tmp_path / "pipe.png") == "is a FIFO, not a regular file"
     assert file_problem(str(tmp_path / "a\0b")) == "contains a NUL character"
     assert file_problem("/dev/null") == "is a device, not a regular file"
+
+
+def _textured_scene(tmp_path, texture: str):
+    quad = "{primitive: quad, size: [10, 10]}"
+    material = f"{{description: pbr_textured, uniforms: {{albedo_map: {texture}}}}}"
+    path = tmp_path / "s.yaml"
+    path.write_text(
+        f"camera: {{position: [0, 0, 3], target: [0, 0, 0]}}\nbackground: [0, 0, 0]\n"
+        f"nodes:\n  - {{mesh: {quad}, material: {material}}}\n"
+    )
+    return path
+
+
+def _render(tmp_path, scene, capsys) -> tuple[int, str]:
+    rc = main(["render", str(scene), "--width", "32", "--height", "32", "--out", str(tmp_path / "o.png")])
+    return rc, capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("make", "fragment"), [("fifo", "t.png"), ("empty", "is empty"), ("zlib", "t.png")])
+def test_scene_texture_that_is_no_readable_image_exits_2(tmp_path, capsys, make, fragment):
+    target = tmp_path / "t.png"
+    if make == "fifo":
+        os.mkfifo(target)
+    elif make == "empty":
+        target.write_bytes(b"")
+    else:
+        png = bytearray(_png("RGB", (64, 64), (200, 10, 10)))
+        at = png.index(b"IDAT") + 4
+        png[at + 2 : at + 12] = b"\xff" * 10
+        target.write_bytes(bytes(png))
+    rc, err = _render(tmp_path, _textured_scene(tmp_path, "t.png"), capsys)
+    assert rc == 2, err
+    assert err.startswith("error: ") and "Traceback" not in err and fragment in err, err
+
+
+def test_scene_texture_16_bit_grey_renders_like_8_bit(tmp_path, capsys):
+    Image.fromarray(np.full((4, 4), 32896, np.uint16)).save(tmp_path / "g16.png")
+    Image.new("L", (4, 4), 128).save(tmp_path / "g8.png")
+    images = []
+    for name in ("g16.png", "g8.png"):
+        rc, err = _render(tmp_path, _textured_scene(tmp_path, name), capsys)
+        assert rc == 0, err
+        images.append(np.asarray(Image.open(tmp_path / "o.png")))
+    assert np.array_equal(images[0], images[1])
+    assert images[0][16, 16, :3].max() < 250  # not white
