@@ -479,7 +479,12 @@ def load_gltf(
     """Read a .glb/.gltf file into root Nodes with the file's hierarchy, materials and camera."""
 
     p = Path(path)
-    fail = file_error(p, file_for_errors, line, key)
+    cited = file_error(p, file_for_errors, line, key)
+
+    def fail(reason: str, hint: str) -> ConfigError:
+        # cited at the scene's line: the reason names the glTF file the object path belongs to
+        return cited(reason if file_for_errors is None or str(p) in reason else f"{p}: {reason}", hint)
+
     check_file(p, fail, "glTF file")
     try:
         doc, binary = _parse_document(p.read_bytes())

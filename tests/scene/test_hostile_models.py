@@ -441,3 +441,14 @@ def test_scene_texture_16_bit_grey_renders_like_8_bit(tmp_path, capsys):
         images.append(np.asarray(Image.open(tmp_path / "o.png")))
     assert np.array_equal(images[0], images[1])
     assert images[0][16, 16, :3].max() < 250  # not white
+
+
+def test_gltf_named_by_a_scene_is_cited_at_the_scene_line_and_names_the_gltf(tmp_path, capsys):
+    write(tmp_path, with_camera(yfov=0), "cam.gltf")
+    scene = tmp_path / "s.yaml"
+    scene.write_text(
+        "camera: {position: [0, 0, 3], target: [0, 0, 0]}\nnodes:\n  - {mesh: {file: cam.gltf}, material: {description: unlit}}\n"
+    )
+    rc, err = _render(tmp_path, scene, capsys)
+    assert rc == 2, err
+    assert "s.yaml:3" in err and "cam.gltf" in err and "yfov" in err and "Traceback" not in err, err
