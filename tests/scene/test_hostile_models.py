@@ -452,3 +452,17 @@ def test_gltf_named_by_a_scene_is_cited_at_the_scene_line_and_names_the_gltf(tmp
     rc, err = _render(tmp_path, scene, capsys)
     assert rc == 2, err
     assert "s.yaml:3" in err and "cam.gltf" in err and "yfov" in err and "Traceback" not in err, err
+
+
+def test_gltf_json_nested_100k_deep_is_refused_without_recursion_error(tmp_path):
+    path = tmp_path / "deep.gltf"
+    path.write_text('{"asset": ' + "[" * 100_000 + "]" * 100_000 + "}")
+    refused(path, "cannot read glTF file")
+
+
+def test_camera_matrix_with_nan_is_refused(tmp_path):
+    doc = with_camera()
+    doc["nodes"][1] = {"camera": 0, "matrix": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 5, "NAN"]}
+    path = tmp_path / "m.gltf"
+    path.write_text(json.dumps(doc).replace('"NAN"', "NaN"))
+    refused(path, "nodes[1].matrix must be 16 finite numbers")
