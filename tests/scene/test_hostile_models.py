@@ -466,3 +466,18 @@ def test_camera_matrix_with_nan_is_refused(tmp_path):
     path = tmp_path / "m.gltf"
     path.write_text(json.dumps(doc).replace('"NAN"', "NaN"))
     refused(path, "nodes[1].matrix must be 16 finite numbers")
+
+
+@pytest.mark.parametrize(("image", "expected"), [("I;16", [128, 128, 128, 255]), ("LA", [100, 100, 100, 50])])
+def test_gltf_grey_textures_read_as_written(tmp_path, image, expected):
+    out = io.BytesIO()
+    if image == "I;16":
+        Image.fromarray(np.full((2, 2), 32896, np.uint16)).save(out, "PNG")  # 0x8080: half grey, not white
+    else:
+        Image.new("LA", (2, 2), (100, 50)).save(out, "PNG")
+    doc = _textured(tmp_path, out.getvalue())
+    doc["accessors"].append({"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC2"})
+    doc["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = 2
+    (root,) = load_gltf(write(tmp_path, doc)).nodes
+    maps = [n.material.uniforms["base_color_map"] for n, _ in root.walk() if n.material is not None]
+    assert [m.pixels[0, 0].tolist() for m in maps] == [expected]
