@@ -234,8 +234,17 @@ def _check_document(p: Path, doc: dict, binary: bytes | None, fail) -> None:
                 f"accessors[{i}] is a sparse accessor, which guaca_py does not read",
                 "export the file without sparse accessors (most exporters have an option)",
             )
+    _check_accessors(p, doc, binary, fail)
     nodes = _items(doc, "nodes", fail)
     _check_nodes(doc, nodes, fail)
+    meshes = _items(doc, "meshes", fail)
+    for i, node in enumerate(nodes):
+        if "mesh" in node:
+            _index(node["mesh"], len(meshes), f"nodes[{i}].mesh", fail)
+        if "rotation" in node and sum(v * v for v in node["rotation"]) < 1e-12:
+            raise fail(f"nodes[{i}].rotation is a zero quaternion", "a rotation is a unit quaternion [x, y, z, w]")
+    if "scene" in doc:
+        _index(doc["scene"], len(_items(doc, "scenes", fail)), "scene", fail)
     cameras = _items(doc, "cameras", fail)
     for i, node in enumerate(nodes):
         if "camera" in node:
@@ -245,6 +254,63 @@ def _check_document(p: Path, doc: dict, binary: bytes | None, fail) -> None:
             warn_scene(f"{p.name}: nodes[{i}] is scaled to zero on an axis; its mesh draws nothing")
     _check_materials(doc, fail)
     _check_images(p, doc, binary, fail)
+
+
+_COMPONENT_BYTES = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}
+_TYPE_COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
+
+
+def _natural(value) -> bool:
+    """A non-negative integer (not a bool)."""
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 0
+
+
+def _check_accessors(p: Path, doc: dict, binary: bytes | None, fail) -> None:
+    """Buffers hold their byteLength, buffer views lie in their buffers, accessors in their views (spec 3.6)."""
+    buffers, views = _items(doc, "buffers", fail), _items(doc, "bufferViews", fail)
+    sizes = []
+    for i, buf in enumerate(buffers):
+        if not _natural(buf.get("byteLength")):
+            raise fail(f"buffers[{i}].byteLength must be a non-negative integer", "export the file again")
+        try:
+            held = len(_buffer_bytes(p, doc, binary, i))
+        except (OSError, ValueError, IndexError) as exc:
+            raise fail(f"buffers[{i}] cannot be read: {exc}", "export the file again") from None
+        if held < buf["byteLength"]:
+            raise fail(
+                f"buffers[{i}] holds {held} bytes, less than its byteLength {buf['byteLength']}",
+                "export the file again",
+            )
+        sizes.append(buf["byteLength"])
+    for i, view in enumerate(views):
+        b = _index(view.get("buffer"), len(buffers), f"bufferViews[{i}].buffer", fail)
+        start, length = view.get("byteOffset", 0), view.get("byteLength")
+        if not (_natural(start) and _natural(length)) or start + length > sizes[b]:
+            raise fail(
+                f"bufferViews[{i}] (byteOffset {start!r}, byteLength {length!r}) lies outside buffers[{b}] ({sizes[b]} bytes)",
+                "export the file again",
+            )
+    for i, acc in enumerate(_items(doc, "accessors", fail)):
+        count, kind, comp = acc.get("count"), acc.get("type"), acc.get("componentType")
+        if not _natural(count) or kind not in _TYPE_COMPONENTS or comp not in _COMPONENT_BYTES:
+            raise fail(
+                f"accessors[{i}] needs a count, a type and a componentType glTF defines", "export the file again"
+            )
+        if "bufferView" not in acc or count == 0:
+            continue
+        v = _index(acc["bufferView"], len(views), f"accessors[{i}].bufferView", fail)
+        element = _TYPE_COMPONENTS[kind] * _COMPONENT_BYTES[comp]
+        stride = views[v].get("byteStride", element)
+        offset = acc.get("byteOffset", 0)
+        if not (_natural(offset) and _natural(stride)):
+            raise fail(
+                f"accessors[{i}] byteOffset and byteStride must be non-negative integers", "export the file again"
+            )
+        if offset + stride * (count - 1) + element > views[v]["byteLength"]:
+            raise fail(
+                f"accessors[{i}] ({count} x {kind}) reaches past bufferViews[{v}] ({views[v]['byteLength']} bytes)",
+                "export the file again",
+            )
 
 
 _COMPONENT = {5121: np.uint8, 5123: np.uint16, 5125: np.uint32}  # index component types

@@ -481,3 +481,31 @@ def test_gltf_grey_textures_read_as_written(tmp_path, image, expected):
     (root,) = load_gltf(write(tmp_path, doc)).nodes
     maps = [n.material.uniforms["base_color_map"] for n, _ in root.walk() if n.material is not None]
     assert [m.pixels[0, 0].tolist() for m in maps] == [expected]
+
+
+@pytest.mark.parametrize(
+    ("change", "fragment"),
+    [
+        (
+            lambda d: d["accessors"][0].update(count=10**9),
+            "accessors[0] (1000000000 x VEC3) reaches past bufferViews[0]",
+        ),
+        (lambda d: d["bufferViews"][0].update(byteLength=10**12), "bufferViews[0] (byteOffset 0"),
+        (lambda d: d["buffers"][0].update(byteLength=10**6), "buffers[0] holds 60 bytes"),
+        (lambda d: d["nodes"][0].update(mesh=7), "nodes[0].mesh = 7"),
+        (lambda d: d.update(scene=5), "scene = 5"),
+        (lambda d: d["nodes"][0].update(rotation=[0, 0, 0, 0]), "nodes[0].rotation is a zero quaternion"),
+        (lambda d: d["accessors"][1].update(componentType=1), "accessors[1] needs"),
+    ],
+)
+def test_inconsistent_gltf_objects_are_refused_by_path(tmp_path, change, fragment):
+    doc = quad_doc()
+    change(doc)
+    refused(write(tmp_path, doc), fragment)
+
+
+def test_fan_without_indices_is_triangulated(tmp_path):
+    doc = quad_doc(mode=6)
+    del doc["meshes"][0]["primitives"][0]["indices"]
+    (mesh,) = load_gltf(write(tmp_path, doc)).meshes.values()
+    assert mesh.indices.tolist() == [[0, 1, 2], [0, 2, 3]]
