@@ -23,8 +23,11 @@ class TextureImage:
             px = px[:, :, None]
         if px.ndim != 3 or px.shape[2] not in (1, 2, 3, 4) or px.shape[0] < 1 or px.shape[1] < 1:
             raise ValueError(f"texture image must be (H, W[, 1-4]) pixels, got shape {np.shape(pixels)}")
-        if px.dtype != np.uint8:
-            px = np.clip(np.rint(np.asarray(px, dtype=np.float64) * 255.0), 0, 255).astype(np.uint8)
+        if px.dtype == np.uint16:  # 16-bit channels (e.g. a 16-bit PNG read by numpy): scaled, not clipped
+            px = np.rint(px.astype(np.float64) * (255.0 / 65535.0)).astype(np.uint8)
+        elif px.dtype != np.uint8:  # floats (and other integers) in 0..1
+            unit = np.nan_to_num(np.asarray(px, dtype=np.float64), nan=0.0, posinf=1.0, neginf=0.0)
+            px = np.clip(np.rint(unit * 255.0), 0, 255).astype(np.uint8)
         if px.shape[2] < 4:  # grey, grey+alpha, rgb -> rgba
             grey = px[:, :, :1]
             rgb = px[:, :, :3] if px.shape[2] >= 3 else np.repeat(grey, 3, axis=2)

@@ -509,3 +509,10 @@ def test_fan_without_indices_is_triangulated(tmp_path):
     del doc["meshes"][0]["primitives"][0]["indices"]
     (mesh,) = load_gltf(write(tmp_path, doc)).meshes.values()
     assert mesh.indices.tolist() == [[0, 1, 2], [0, 2, 3]]
+
+
+def test_texture_image_scales_16_bit_and_zeroes_nan():
+    from guaca_py.scene.texture import TextureImage
+
+    assert TextureImage(np.full((1, 1), 32896, np.uint16)).pixels[0, 0].tolist() == [128, 128, 128, 255]
+    assert TextureImage(np.array([[[np.nan, 0.5, 2.0]]])).pixels[0, 0].tolist() == [0, 128, 255, 255]
