@@ -12,6 +12,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from .nodes import MeshData
+from .texture import decode_image
 
 MESH_FORMATS_HINT = "supported formats: .obj, .ply, .stl, .glb, .gltf (anything trimesh reads)"
 
@@ -152,13 +153,19 @@ def check_mesh_source(p: Path, fail: Callable[[str, str], ConfigError]) -> None:
 
 
 def _check_mtl(mtl: Path, fail: Callable[[str, str], ConfigError]) -> None:
-    """Texture maps an MTL names must be regular files where they exist."""
+    """Texture maps an MTL names must be regular files where they exist; the colour map must decode (size bounded)."""
     for number, line in enumerate(mtl.read_bytes().decode("latin-1").splitlines(), 1):
         word = line.split(None, 1)[0].lower() if line.strip() else ""
         if word.startswith("map_") or word in ("bump", "disp", "decal", "refl"):
             parts = line.split()
             if len(parts) > 1:
-                _side_file(mtl.parent / parts[-1], f"{mtl}:{number}: {word}", fail)
+                image = mtl.parent / parts[-1]
+                _side_file(image, f"{mtl}:{number}: {word}", fail)
+                if word == "map_kd" and file_problem(image) is None:  # trimesh would drop a bad one silently
+                    try:
+                        decode_image(image, str(image))
+                    except ValueError as exc:
+                        raise fail(f"{mtl}:{number}: {exc}", "re-export the texture as a PNG or JPEG") from None
 
 
 def _check_stl(p: Path, fail: Callable[[str, str], ConfigError]) -> None:

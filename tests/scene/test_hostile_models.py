@@ -516,3 +516,12 @@ def test_texture_image_scales_16_bit_and_zeroes_nan():
 
     assert TextureImage(np.full((1, 1), 32896, np.uint16)).pixels[0, 0].tolist() == [128, 128, 128, 255]
     assert TextureImage(np.array([[[np.nan, 0.5, 2.0]]])).pixels[0, 0].tolist() == [0, 128, 255, 255]
+
+
+@pytest.mark.parametrize(("data", "fragment"), [(b"not a png", "not a readable image"), (None, "too many pixels")])
+def test_mtl_colour_map_that_does_not_decode_is_refused(tmp_path, data, fragment):
+    (tmp_path / "t.png").write_bytes(_bomb_png(60000) if data is None else data)
+    (tmp_path / "m.mtl").write_text("newmtl a\nKd 1 1 1\nmap_Kd t.png\n")
+    path = tmp_path / "m.obj"
+    path.write_text("mtllib m.mtl\nvt 0 0\n" + TRI + "usemtl a\nf 1/1 2/1 3/1\n")
+    mesh_refused(path, "m.mtl:3", fragment)
