@@ -127,7 +127,7 @@ def test_deep_chain_is_refused_without_recursion_error(tmp_path):
 
 def test_chain_within_the_bound_loads(tmp_path):
     doc = quad_doc()
-    doc["nodes"] = [{"children": [i + 1]} for i in range(50)] + [{"mesh": 0}]
+    doc["nodes"] = [{"children": [i + 1]} for i in range(MAX_NODE_DEPTH - 1)] + [{"mesh": 0}]
     assert load_gltf(write(tmp_path, doc)).nodes
 
 
