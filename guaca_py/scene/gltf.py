@@ -46,14 +46,6 @@ SUPPORTED_REQUIRED: frozenset[str] = frozenset()
 _DEPTH_BITS = 24  # the depth buffer's bits: far / near beyond 2**24 collapses surfaces (as for YAML cameras)
 
 
-def _file_json(path: Path) -> dict:
-    """The glTF JSON document of a .gltf or .glb file ({} when it cannot be read)."""
-    try:
-        return _parse_document(path.read_bytes())[0]
-    except (OSError, ValueError, struct.error, RecursionError):
-        return {}
-
-
 def _parse_document(data: bytes) -> tuple[dict, bytes | None]:
     """(JSON document, GLB binary chunk or None); ValueError saying what is wrong with the container."""
     if data[:4] != b"glTF":
@@ -422,7 +414,12 @@ def _load_trimesh(p: Path, doc: dict, binary: bytes | None, fail):
 def _check_images(p: Path, doc: dict, binary: bytes | None, fail) -> None:
     """Every image decodes to a bounded size (header read first); a bad one is a located error, not dropped."""
     views = _items(doc, "bufferViews", fail)
+    # only images a texture samples as its core `source`: one named only by an extension (a KTX2
+    # beside a PNG fallback) is not read by trimesh, so it need not be readable here either
+    used = {t.get("source") for t in _items(doc, "textures", fail)}
     for i, image in enumerate(_items(doc, "images", fail)):
+        if i not in used:
+            continue
         where = f"images[{i}]" + (f" ({image['name']})" if isinstance(image.get("name"), str) else "")
         if "uri" in image:
             source = _check_uri(image["uri"], p.parent, f"images[{i}].uri", fail)

@@ -525,3 +525,11 @@ def test_mtl_colour_map_that_does_not_decode_is_refused(tmp_path, data, fragment
     path = tmp_path / "m.obj"
     path.write_text("mtllib m.mtl\nvt 0 0\n" + TRI + "usemtl a\nf 1/1 2/1 3/1\n")
     mesh_refused(path, "m.mtl:3", fragment)
+
+
+def test_image_named_only_by_an_extension_is_not_decoded(tmp_path):
+    doc = _textured(tmp_path, _png("RGB"))
+    doc["images"].append({"uri": _data_uri(b"KTX2 data Pillow cannot read"), "mimeType": "image/ktx2"})
+    doc["textures"][0]["extensions"] = {"KHR_texture_basisu": {"source": 1}}
+    doc["extensionsUsed"] = ["KHR_texture_basisu"]
+    assert load_gltf(write(tmp_path, doc)).nodes
