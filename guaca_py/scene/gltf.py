@@ -284,7 +284,11 @@ def _check_accessors(p: Path, doc: dict, binary: bytes | None, fail) -> None:
             )
     for i, acc in enumerate(_items(doc, "accessors", fail)):
         count, kind, comp = acc.get("count"), acc.get("type"), acc.get("componentType")
-        if not _natural(count) or kind not in _TYPE_COMPONENTS or comp not in _COMPONENT_BYTES:
+        if (
+            not (_natural(count) and isinstance(kind, str) and _natural(comp))
+            or kind not in _TYPE_COMPONENTS
+            or comp not in _COMPONENT_BYTES
+        ):
             raise fail(
                 f"accessors[{i}] needs a count, a type and a componentType glTF defines", "export the file again"
             )
@@ -416,7 +420,7 @@ def _check_images(p: Path, doc: dict, binary: bytes | None, fail) -> None:
     views = _items(doc, "bufferViews", fail)
     # only images a texture samples as its core `source`: one named only by an extension (a KTX2
     # beside a PNG fallback) is not read by trimesh, so it need not be readable here either
-    used = {t.get("source") for t in _items(doc, "textures", fail)}
+    used = {t.get("source") for t in _items(doc, "textures", fail) if _natural(t.get("source"))}
     for i, image in enumerate(_items(doc, "images", fail)):
         if i not in used:
             continue
@@ -456,7 +460,8 @@ def _exact_factors(doc: dict) -> dict[str, dict]:
     for m in mats:
         name = m.get("name")
         if name and names.count(name) == 1:
-            pbr = m.get("pbrMetallicRoughness") or {}
+            pbr = m.get("pbrMetallicRoughness")
+            pbr = pbr if isinstance(pbr, dict) else {}
             out[name] = {
                 "base_color": pbr.get("baseColorFactor"),
                 "metallic": pbr.get("metallicFactor"),
@@ -553,7 +558,10 @@ def load_gltf(
         doc, binary = _parse_document(p.read_bytes())
     except (OSError, ValueError, struct.error, RecursionError) as exc:
         raise fail(f"cannot read glTF file {p}: {exc}", MESH_FORMATS_HINT) from None
-    _check_document(p, doc, binary, fail)
+    try:
+        _check_document(p, doc, binary, fail)
+    except (TypeError, ValueError, KeyError, IndexError, AttributeError) as exc:  # a wrong type in a field
+        raise fail(f"cannot read glTF file {p}: a field has the wrong type ({exc})", "export the file again") from None
     try:
         tscene = _load_trimesh(p, doc, binary, fail)
     except ConfigError:

@@ -262,6 +262,11 @@ def load_mesh_file(
 def trimesh_to_meshdata(loaded, name: str, fail, what: str) -> MeshData:
     """Validate one trimesh.Trimesh and convert it to MeshData; `fail(reason, hint)` builds the error."""
     positions = np.asarray(loaded.vertices, dtype=np.float64)
+    if positions.ndim != 2 or positions.shape[1] != 3:
+        raise fail(
+            f"{what} has vertex positions of shape {positions.shape}, not (N, 3)",
+            "positions are 3 floats a vertex (a glTF POSITION accessor is VEC3)",
+        )
     faces = np.asarray(loaded.faces, dtype=np.int64).reshape(-1, 3)
     if len(faces) == 0 or len(positions) == 0:
         raise fail(f"{what} has no triangles", "export the mesh with faces, not just vertices")

@@ -533,3 +533,49 @@ def test_image_named_only_by_an_extension_is_not_decoded(tmp_path):
     doc["textures"][0]["extensions"] = {"KHR_texture_basisu": {"source": 1}}
     doc["extensionsUsed"] = ["KHR_texture_basisu"]
     assert load_gltf(write(tmp_path, doc)).nodes
+
+
+_HOSTILE_VALUES = [float("nan"), float("inf"), -1, 0, 1e9, 2**40, "x", [], {}, None, True, [1, 2], -0.5, 3.5]
+
+
+def _json_paths(value, prefix=()):
+    yield prefix
+    items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else ()
+    for key, child in items:
+        yield from _json_paths(child, (*prefix, key))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_mutated_gltf_is_loaded_or_refused_never_a_traceback(tmp_path, seed):
+    """Mutation fuzzing: 1-3 fields of a valid glTF set to hostile values; only ConfigError may come out.
+
+    GUACA_FUZZ_CASES raises the number of documents per seed (default 150) for a longer run.
+    """
+    import copy
+    import random
+    import warnings
+
+    base = with_camera()
+    base["materials"] = [{"pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1]}, "alphaMode": "BLEND"}]
+    base["meshes"][0]["primitives"][0]["material"] = 0
+    fields = [p for p in _json_paths(base) if p and p[0] != "buffers"]
+    rng = random.Random(seed)
+    path = tmp_path / "fuzz.gltf"
+    for _ in range(int(os.environ.get("GUACA_FUZZ_CASES", "150"))):
+        doc = copy.deepcopy(base)
+        for field in rng.sample(fields, rng.randint(1, 3)):
+            holder = doc  # an earlier mutation may have replaced a container on this field's path
+            for key in field[:-1]:
+                fits = isinstance(holder, dict) and key in holder
+                fits = fits or (isinstance(holder, list) and isinstance(key, int) and key < len(holder))
+                holder = holder[key] if fits else None
+            key = field[-1]
+            if isinstance(holder, dict) or (isinstance(holder, list) and isinstance(key, int) and key < len(holder)):
+                holder[key] = rng.choice(_HOSTILE_VALUES)
+        path.write_text(json.dumps(doc))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                load_gltf(path)
+            except ConfigError as exc:
+                assert "fuzz.gltf" in str(exc)
