@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import os
+import re
 import stat
 from collections.abc import Callable
 from pathlib import Path
@@ -141,7 +142,7 @@ def check_mesh_source(p: Path, fail: Callable[[str, str], ConfigError]) -> None:
         if word == "f":
             for ref in line.split()[1:]:
                 first = ref.split("/", 1)[0]
-                if first.lstrip("-").isdigit() and int(first) == 0:
+                if re.fullmatch(r"[-+]?0+", first):
                     raise fail(
                         f"{p}:{number}: face index 0 (OBJ indices start at 1)", "repair the mesh in a modelling tool"
                     )
@@ -206,7 +207,13 @@ def load_checked(p: Path, trimesh, fail: Callable[[str, str], ConfigError], **kw
     check_finite(loaded, p, fail)
     for geom in loaded.geometry.values() if hasattr(loaded, "geometry") else [loaded]:
         if hasattr(geom, "process") and hasattr(geom, "faces"):
-            geom.process()  # what trimesh.load(process=True) does: merge duplicate vertices
+            faces = np.asarray(geom.faces)
+            if faces.size and (faces.min() < 0 or faces.max() >= len(geom.vertices)):
+                raise fail(f"{p} has face indices outside its vertex list", "repair the mesh in a modelling tool")
+            try:
+                geom.process()  # what trimesh.load(process=True) does: merge duplicate vertices
+            except Exception as exc:  # as for trimesh.load: any failure means a bad file
+                raise fail(f"cannot read mesh file {p}: {exc}", MESH_FORMATS_HINT) from exc
     return loaded
 
 

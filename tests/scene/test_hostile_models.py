@@ -579,3 +579,54 @@ def test_mutated_gltf_is_loaded_or_refused_never_a_traceback(tmp_path, seed):
                 load_gltf(path)
             except ConfigError as exc:
                 assert "fuzz.gltf" in str(exc)
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_byte_mutated_mesh_files_are_loaded_or_refused_never_a_traceback(tmp_path, seed):
+    """Byte-level fuzzing of OBJ, STL, PLY, OFF and GLB files (truncations and overwritten bytes).
+
+    GUACA_FUZZ_CASES raises the number of files per seed (default 150) for a longer run.
+    """
+    import random
+    import warnings
+
+    import trimesh
+
+    from guaca_py import load
+
+    box = trimesh.creation.box()
+    sources = {}
+    for ext in ("obj", "stl", "ply", "off", "glb"):
+        data = box.export(file_type=ext)
+        sources[ext] = data.encode() if isinstance(data, str) else data
+    rng = random.Random(seed)
+    hostile = [0, 255, ord("-"), ord("n"), ord("9"), ord(" "), ord("\n")]
+    for _ in range(int(os.environ.get("GUACA_FUZZ_CASES", "150"))):
+        ext = rng.choice(sorted(sources))
+        data = bytearray(sources[ext])
+        if rng.random() < 0.3:
+            data = data[: rng.randrange(len(data))]
+        else:
+            for _ in range(rng.randint(1, 8)):
+                data[rng.randrange(len(data))] = rng.choice([*hostile, rng.randrange(256)])
+        path = tmp_path / f"fuzz.{ext}"
+        path.write_bytes(bytes(data))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                load(path)
+            except ConfigError as exc:
+                assert "fuzz." in str(exc)
+
+
+def test_out_of_range_ply_face_and_odd_obj_digits_are_refused(tmp_path):
+    path = tmp_path / "o.obj"
+    path.write_text(TRI + "f 1 2 7\u00b36\n")
+    with pytest.raises(ConfigError):
+        load_mesh(path)
+    ply = tmp_path / "o.ply"
+    ply.write_text(
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+        "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 90\n"
+    )
+    mesh_refused(ply, "face indices outside its vertex list")
