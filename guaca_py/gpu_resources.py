@@ -153,25 +153,21 @@ class TextureCache(_FrameCache):
         elif name in _BUILTIN_TEXELS:
             tex = self.ctx.texture((1, 1), 4, bytes(_BUILTIN_TEXELS[name]))
         else:
-            from PIL import Image
+            from .scene.mesh_io import file_problem
+            from .scene.texture import MAX_TEXTURE_SIDE, decode_image
 
             path = Path(name) if Path(name).is_absolute() or base is None else base / name
-            if not path.is_file():
-                raise ConfigError(f"texture not found: {path}", hint="paths in scenes resolve against the scene file")
+            problem = file_problem(path)
+            if problem is not None:
+                raise ConfigError(f"texture {problem}: {path}", hint="paths in scenes resolve against the scene file")
+            device = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
+            limit = "the device's largest" if device <= MAX_TEXTURE_SIDE else "the largest read"
             try:
-                img = Image.open(path).convert("RGBA").transpose(Image.Transpose.FLIP_TOP_BOTTOM)
-            except (OSError, ValueError, Image.DecompressionBombError) as exc:
-                raise ConfigError(
-                    f"texture {path} is not a readable image ({exc})", path, hint="use a PNG or JPEG file"
-                ) from None
-            most = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
-            if max(img.size) > most:
-                raise ConfigError(
-                    f"texture {path} is {img.size[0]}x{img.size[1]}; the device's largest is {most}x{most}",
-                    path,
-                    hint="scale the image down",
-                )
-            tex = self.ctx.texture(img.size, 4, img.tobytes())
+                pixels = decode_image(path, str(path), min(device, MAX_TEXTURE_SIDE), limit)
+            except ValueError as exc:
+                raise ConfigError(str(exc), path, hint="use a PNG or JPEG file; scale a larger image down") from None
+            img = np.ascontiguousarray(pixels[::-1])  # row 0 at the top -> GL's bottom-up rows
+            tex = self.ctx.texture((img.shape[1], img.shape[0]), 4, img.tobytes())
             tex.build_mipmaps()
         self._tex[key] = tex
         return tex

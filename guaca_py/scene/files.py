@@ -13,7 +13,7 @@ from pathlib import Path
 from .framing import camera_and_lights
 from .gltf import GLTF_SUFFIXES, load_gltf
 from .graph import Scene
-from .mesh_io import MESH_FORMATS_HINT, file_error, trimesh_load_args
+from .mesh_io import check_file, file_error, file_problem, load_checked
 from .nodes import Node
 from .trimesh_scene import nodes_from_trimesh
 
@@ -27,6 +27,8 @@ def _is_gltf(p: Path) -> bool:
     """A .gltf/.glb suffix, or a binary glTF's magic bytes under another name."""
     if p.suffix.lower() in GLTF_SUFFIXES:
         return True
+    if file_problem(p) is not None:
+        return False  # never open a FIFO or device to sniff it; the reader refuses it by name
     try:
         with p.open("rb") as f:
             return f.read(4) == b"glTF"
@@ -70,13 +72,8 @@ def load_mesh_scene(path: str | Path) -> list[Node]:
 
     p = Path(path)
     fail = file_error(p, None, None, None)
-    if not p.is_file():
-        what = "is a directory, not a mesh file" if p.is_dir() else "not found"
-        raise fail(f"mesh file {what}: {p}", "check the path")
-    try:
-        loaded = trimesh.load(**trimesh_load_args(p, trimesh), force="scene")
-    except Exception as exc:  # trimesh raises many types for unreadable input; all mean "bad file"
-        raise fail(f"cannot read mesh file {p}: {exc}", MESH_FORMATS_HINT) from exc
+    check_file(p, fail, "mesh file")
+    loaded = load_checked(p, trimesh, fail, force="scene")
     return nodes_from_trimesh(loaded, str(p), fail)
 
 

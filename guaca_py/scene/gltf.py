@@ -11,6 +11,7 @@ scaled or moved parent would look from the wrong place).
 
 from __future__ import annotations
 
+import base64
 import json
 import math
 import struct
@@ -20,8 +21,10 @@ from pathlib import Path
 import numpy as np
 from pyglm import glm
 
-from .mesh_io import MESH_FORMATS_HINT, file_error
+from ..errors import ConfigError
+from .mesh_io import MESH_FORMATS_HINT, check_file, file_error
 from .nodes import Camera, MeshData, Node, scene_bounds
+from .texture import decode_image
 from .trimesh_scene import camera_from_matrix, far_past, nodes_from_trimesh, warn_scene
 
 GLTF_SUFFIXES = (".glb", ".gltf")
@@ -36,16 +39,417 @@ class GltfContent:
     meshes: dict[str, MeshData] = field(default_factory=dict)
 
 
-def _file_json(path: Path) -> dict:
-    """The glTF JSON document of a .gltf or .glb file ({} when it cannot be read)."""
-    try:
-        data = path.read_bytes()
-        if data[:4] == b"glTF":
-            length = struct.unpack_from("<I", data, 12)[0]
-            return json.loads(data[20 : 20 + length])
-        return json.loads(data)
-    except (OSError, ValueError, struct.error):
-        return {}
+#: the deepest node chain read (a deeper or cyclic graph is refused, not recursed into)
+MAX_NODE_DEPTH = 256
+#: glTF extensions a file may list in extensionsRequired (the spec says to refuse any other)
+SUPPORTED_REQUIRED: frozenset[str] = frozenset()
+_DEPTH_BITS = 24  # the depth buffer's bits: far / near beyond 2**24 collapses surfaces (as for YAML cameras)
+
+
+def _parse_document(data: bytes) -> tuple[dict, bytes | None]:
+    """(JSON document, GLB binary chunk or None); ValueError saying what is wrong with the container."""
+    if data[:4] != b"glTF":
+        doc = json.loads(data)
+        if not isinstance(doc, dict):
+            raise ValueError("the JSON document is not an object")
+        return doc, None
+    if len(data) < 20:
+        raise ValueError(f"the binary glTF is truncated ({len(data)} bytes, a header needs 20)")
+    _magic, _version, total = struct.unpack_from("<III", data, 0)
+    if total > len(data):
+        raise ValueError(f"the binary glTF header claims {total} bytes but the file has {len(data)}")
+    chunks, at = [], 12
+    while at + 8 <= total:
+        length, kind = struct.unpack_from("<II", data, at)
+        if at + 8 + length > total:
+            raise ValueError(f"a chunk at byte {at} claims {length} bytes, past the end of the file ({total} bytes)")
+        chunks.append((kind, data[at + 8 : at + 8 + length]))
+        at += 8 + length
+    if not chunks or chunks[0][0] != 0x4E4F534A:  # 'JSON'
+        raise ValueError("the binary glTF does not start with a JSON chunk")
+    doc = json.loads(chunks[0][1])
+    if not isinstance(doc, dict):
+        raise ValueError("the JSON document is not an object")
+    binary = chunks[1][1] if len(chunks) > 1 and chunks[1][0] == 0x004E4942 else None  # 'BIN\0'
+    return doc, binary
+
+
+def _finite(value, count: int | None = None) -> bool:
+    """`value` is a finite number (count None) or a list of `count` finite numbers."""
+    items = [value] if count is None else value
+    if count is not None and (not isinstance(value, list) or len(value) != count):
+        return False
+    return all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in items)
+
+
+def _items(doc: dict, key: str, fail) -> list:
+    """doc[key] as a list of objects, or a located error."""
+    value = doc.get(key, [])
+    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+        raise fail(f"'{key}' must be a list of objects", "export the file again; it does not follow glTF 2.0")
+    return value
+
+
+def _index(value, count: int, where: str, fail) -> int:
+    """`value` as an index below `count`, or a located error naming `where`."""
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < count:
+        raise fail(f"{where} = {value!r} is not an index below {count}", "export the file again")
+    return value
+
+
+def _check_uri(uri, base: Path, where: str, fail) -> Path | None:
+    """The local file an external `uri` names (checked to be a regular file), or None for a data: URI."""
+    from urllib.parse import unquote
+
+    if not isinstance(uri, str):
+        raise fail(f"{where} must be a string, got {uri!r}", "export the file again")
+    if uri.startswith("data:"):
+        return None
+    if "://" in uri:
+        raise fail(f"{where} = {uri!r}: only local files and data: URIs are read", "download the file next to the glTF")
+    target = base / unquote(uri)
+    check_file(target, fail, where)
+    return target
+
+
+def _check_nodes(doc: dict, nodes: list, fail) -> None:
+    """Children in range, each node with at most one parent, no cycles, no chain deeper than MAX_NODE_DEPTH."""
+    parent: dict[int, int] = {}
+    for i, node in enumerate(nodes):
+        children = node.get("children", [])
+        if not isinstance(children, list):
+            raise fail(f"nodes[{i}].children must be a list of node indices", "export the file again")
+        for c in children:
+            c = _index(c, len(nodes), f"nodes[{i}].children", fail)
+            if c == i:
+                raise fail(f"nodes[{i}] is its own child", "a glTF node graph must be a tree; export the file again")
+            if c in parent:
+                raise fail(
+                    f"nodes[{c}] has two parents (nodes[{parent[c]}] and nodes[{i}])",
+                    "a glTF node graph must be a tree (spec 3.5.2); export the file again",
+                )
+            parent[c] = i
+        for key, count in (("translation", 3), ("rotation", 4), ("scale", 3), ("matrix", 16)):
+            if key in node and not _finite(node[key], count):
+                raise fail(
+                    f"nodes[{i}].{key} must be {count} finite numbers, got {node[key]!r}", "export the file again"
+                )
+    for i in range(len(nodes)):  # walk up from every node: a cycle or an over-deep chain ends the walk
+        at, depth = i, 0
+        while at in parent:
+            at, depth = parent[at], depth + 1
+            if at == i:
+                raise fail(
+                    f"nodes[{i}] is its own ancestor (a cycle)",
+                    "a glTF node graph must be a tree; export the file again",
+                )
+            if depth > MAX_NODE_DEPTH:
+                raise fail(
+                    f"nodes[{i}] is more than {MAX_NODE_DEPTH} levels deep",
+                    f"flatten the hierarchy; chains deeper than {MAX_NODE_DEPTH} nodes are refused",
+                )
+    for s, scene in enumerate(_items(doc, "scenes", fail)):
+        for r in scene.get("nodes", []) if isinstance(scene.get("nodes", []), list) else [None]:
+            _index(r, len(nodes), f"scenes[{s}].nodes", fail)
+
+
+def _flattened(node: dict) -> bool:
+    """The node's own scale or matrix is zero along an axis (checked finite already)."""
+    if "matrix" in node:
+        return abs(np.linalg.det(np.asarray(node["matrix"], dtype=np.float64).reshape(4, 4))) == 0.0
+    return any(v == 0 for v in node.get("scale", (1.0, 1.0, 1.0)))
+
+
+def _check_camera(cam: dict, where: str, fail) -> None:
+    """A glTF camera's numbers, checked as a YAML camera's are (field of view, near, far, depth precision)."""
+    persp = cam.get("perspective")
+    if cam.get("type") != "perspective" or not isinstance(persp, dict):
+        return  # orthographic or incomplete: warned and replaced by a framing camera (_file_camera)
+    yfov = persp.get("yfov")
+    if not _finite(yfov) or not 0.0 < yfov < math.radians(179.9):
+        raise fail(
+            f"{where}.perspective.yfov = {yfov!r} must be a number of radians between 0 and pi (0 < yfov < 3.14)",
+            "set the camera's vertical field of view, e.g. 0.8",
+        )
+    near, far = persp.get("znear"), persp.get("zfar")
+    if not _finite(near) or near <= 0.0:
+        raise fail(f"{where}.perspective.znear = {near!r} must be a positive number", "e.g. 0.1")
+    if far is not None:
+        if not _finite(far) or far <= near:
+            raise fail(f"{where}.perspective.zfar = {far!r} must be greater than znear ({near:g})", "e.g. 1000")
+        if far / near > 2.0**_DEPTH_BITS:
+            raise fail(
+                f"{where}: zfar / znear = {far / near:.3g} exhausts the {_DEPTH_BITS}-bit depth buffer",
+                f"raise znear to at least {far / 2.0**_DEPTH_BITS:.3g}",
+            )
+
+
+def _check_materials(doc: dict, fail) -> None:
+    """Material factors finite and in range (a NaN alpha or colour renders as nothing or noise)."""
+    for i, mat in enumerate(_items(doc, "materials", fail)):
+        pbr = mat.get("pbrMetallicRoughness", {})
+        pbr = pbr if isinstance(pbr, dict) else {}
+        checks = [
+            ("pbrMetallicRoughness.baseColorFactor", pbr.get("baseColorFactor"), 4, 1.0),
+            ("pbrMetallicRoughness.metallicFactor", pbr.get("metallicFactor"), None, 1.0),
+            ("pbrMetallicRoughness.roughnessFactor", pbr.get("roughnessFactor"), None, 1.0),
+            ("emissiveFactor", mat.get("emissiveFactor"), 3, 1.0),
+            ("alphaCutoff", mat.get("alphaCutoff"), None, math.inf),
+        ]
+        for key, value, count, top in checks:
+            if value is None:
+                continue
+            values = value if count is not None and isinstance(value, list) else [value]
+            if not _finite(value, count) or not all(0.0 <= v <= top for v in values):
+                size = "a number" if count is None else f"{count} numbers"
+                span = "0 or more" if top == math.inf else "between 0 and 1"
+                raise fail(f"materials[{i}].{key} must be {size} {span}, got {value!r}", "export the file again")
+
+
+def _check_document(p: Path, doc: dict, binary: bytes | None, fail) -> None:
+    """Refuse what the glTF spec says a loader must refuse or what would render wrong, naming the object path."""
+    required = doc.get("extensionsRequired", [])
+    if not isinstance(required, list):
+        raise fail("extensionsRequired must be a list of names", "export the file again")
+    unknown = [e for e in required if e not in SUPPORTED_REQUIRED]
+    if unknown:
+        raise fail(
+            f"extensionsRequired names {', '.join(map(str, unknown))}, which guaca_py does not support",
+            "the glTF spec says a loader must refuse such a file; export it without the extension",
+        )
+    for i, buf in enumerate(_items(doc, "buffers", fail)):
+        if "uri" in buf:
+            _check_uri(buf["uri"], p.parent, f"buffers[{i}].uri", fail)
+    for i, acc in enumerate(_items(doc, "accessors", fail)):
+        if "sparse" in acc:
+            raise fail(
+                f"accessors[{i}] is a sparse accessor, which guaca_py does not read",
+                "export the file without sparse accessors (most exporters have an option)",
+            )
+    _check_accessors(p, doc, binary, fail)
+    nodes = _items(doc, "nodes", fail)
+    _check_nodes(doc, nodes, fail)
+    meshes = _items(doc, "meshes", fail)
+    for i, node in enumerate(nodes):
+        if "mesh" in node:
+            _index(node["mesh"], len(meshes), f"nodes[{i}].mesh", fail)
+        if "rotation" in node and sum(v * v for v in node["rotation"]) < 1e-12:
+            raise fail(f"nodes[{i}].rotation is a zero quaternion", "a rotation is a unit quaternion [x, y, z, w]")
+    if "scene" in doc:
+        _index(doc["scene"], len(_items(doc, "scenes", fail)), "scene", fail)
+    cameras = _items(doc, "cameras", fail)
+    for i, node in enumerate(nodes):
+        if "camera" in node:
+            c = _index(node["camera"], len(cameras), f"nodes[{i}].camera", fail)
+            _check_camera(cameras[c], f"nodes[{i}].camera (cameras[{c}])", fail)
+        if "mesh" in node and _flattened(node):
+            warn_scene(f"{p.name}: nodes[{i}] is scaled to zero on an axis; its mesh draws nothing")
+    _check_materials(doc, fail)
+    _check_images(p, doc, binary, fail)
+
+
+_COMPONENT_BYTES = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}
+_TYPE_COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
+
+
+def _natural(value) -> bool:
+    """A non-negative integer (not a bool)."""
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 0
+
+
+def _check_accessors(p: Path, doc: dict, binary: bytes | None, fail) -> None:
+    """Buffers hold their byteLength, buffer views lie in their buffers, accessors in their views (spec 3.6)."""
+    buffers, views = _items(doc, "buffers", fail), _items(doc, "bufferViews", fail)
+    sizes = []
+    for i, buf in enumerate(buffers):
+        if not _natural(buf.get("byteLength")):
+            raise fail(f"buffers[{i}].byteLength must be a non-negative integer", "export the file again")
+        try:
+            held = len(_buffer_bytes(p, doc, binary, i))
+        except (OSError, ValueError, IndexError) as exc:
+            raise fail(f"buffers[{i}] cannot be read: {exc}", "export the file again") from None
+        if held < buf["byteLength"]:
+            raise fail(
+                f"buffers[{i}] holds {held} bytes, less than its byteLength {buf['byteLength']}",
+                "export the file again",
+            )
+        sizes.append(buf["byteLength"])
+    for i, view in enumerate(views):
+        b = _index(view.get("buffer"), len(buffers), f"bufferViews[{i}].buffer", fail)
+        start, length = view.get("byteOffset", 0), view.get("byteLength")
+        if not (_natural(start) and _natural(length)) or start + length > sizes[b]:
+            raise fail(
+                f"bufferViews[{i}] (byteOffset {start!r}, byteLength {length!r}) lies outside buffers[{b}] ({sizes[b]} bytes)",
+                "export the file again",
+            )
+    for i, acc in enumerate(_items(doc, "accessors", fail)):
+        count, kind, comp = acc.get("count"), acc.get("type"), acc.get("componentType")
+        if (
+            not (_natural(count) and isinstance(kind, str) and _natural(comp))
+            or kind not in _TYPE_COMPONENTS
+            or comp not in _COMPONENT_BYTES
+        ):
+            raise fail(
+                f"accessors[{i}] needs a count, a type and a componentType glTF defines", "export the file again"
+            )
+        if "bufferView" not in acc or count == 0:
+            continue
+        v = _index(acc["bufferView"], len(views), f"accessors[{i}].bufferView", fail)
+        element = _TYPE_COMPONENTS[kind] * _COMPONENT_BYTES[comp]
+        stride = views[v].get("byteStride", element)
+        offset = acc.get("byteOffset", 0)
+        if not (_natural(offset) and _natural(stride)):
+            raise fail(
+                f"accessors[{i}] byteOffset and byteStride must be non-negative integers", "export the file again"
+            )
+        if offset + stride * (count - 1) + element > views[v]["byteLength"]:
+            raise fail(
+                f"accessors[{i}] ({count} x {kind}) reaches past bufferViews[{v}] ({views[v]['byteLength']} bytes)",
+                "export the file again",
+            )
+
+
+_COMPONENT = {5121: np.uint8, 5123: np.uint16, 5125: np.uint32}  # index component types
+
+
+def _buffer_bytes(p: Path, doc: dict, binary: bytes | None, i: int) -> bytes:
+    """The bytes of buffers[i]: the GLB binary chunk, a data: URI, or a local file (already checked)."""
+    from urllib.parse import unquote
+
+    buf = doc["buffers"][i]
+    uri = buf.get("uri")
+    if uri is None:
+        return binary or b""
+    if uri.startswith("data:"):
+        return base64.b64decode(uri.split(",", 1)[1])
+    return (p.parent / unquote(uri)).read_bytes()
+
+
+def _strip_and_fan_indices(p: Path, doc: dict, binary: bytes | None, prim: dict, mode: int) -> np.ndarray:
+    """The triangle-list indices of a TRIANGLE_STRIP (5) or TRIANGLE_FAN (6) primitive (spec 3.7.2.1)."""
+    accessors = doc["accessors"]
+    if "indices" in prim:
+        acc = accessors[prim["indices"]]
+        view = doc["bufferViews"][acc["bufferView"]]
+        dtype = np.dtype(_COMPONENT[acc["componentType"]]).newbyteorder("<")
+        data = _buffer_bytes(p, doc, binary, view.get("buffer", 0))
+        start = view.get("byteOffset", 0) + acc.get("byteOffset", 0)
+        idx = np.frombuffer(data, dtype, acc["count"], start).astype(np.int64)
+    else:
+        idx = np.arange(accessors[prim["attributes"]["POSITION"]]["count"], dtype=np.int64)
+    n = len(idx) - 2
+    if n < 1:
+        return np.zeros((0, 3), np.uint32)
+    k = np.arange(n)
+    if mode == 6:  # fan: (0, k+1, k+2)
+        tris = np.stack([np.full(n, idx[0]), idx[k + 1], idx[k + 2]], axis=1)
+    else:  # strip: odd triangles swap their first two vertices to keep the winding
+        odd = k % 2 == 1
+        a, b = np.where(odd, idx[k + 1], idx[k]), np.where(odd, idx[k], idx[k + 1])
+        tris = np.stack([a, b, idx[k + 2]], axis=1)
+    return tris.astype(np.uint32)
+
+
+def _triangulated(p: Path, doc: dict, binary: bytes | None, fail) -> dict | None:
+    """A copy of `doc` whose strip and fan primitives are triangle lists (in a data: buffer), or None when none are."""
+    import copy
+
+    found = [
+        (m, k)
+        for m, mesh in enumerate(_items(doc, "meshes", fail))
+        for k, prim in enumerate(mesh.get("primitives", []) if isinstance(mesh.get("primitives"), list) else [])
+        if isinstance(prim, dict) and prim.get("mode") in (5, 6)
+    ]
+    if not found:
+        return None
+    out = copy.deepcopy(doc)
+    for key in ("buffers", "bufferViews", "accessors"):
+        out.setdefault(key, [])
+    for m, k in found:
+        prim = out["meshes"][m]["primitives"][k]
+        try:
+            tris = _strip_and_fan_indices(p, doc, binary, prim, prim["mode"])
+        except (KeyError, IndexError, TypeError, ValueError, OSError) as exc:
+            raise fail(
+                f"meshes[{m}].primitives[{k}]: cannot read its indices ({exc})", "export the file again"
+            ) from None
+        data = tris.tobytes()
+        out["buffers"].append(
+            {"byteLength": len(data), "uri": "data:application/octet-stream;base64," + base64.b64encode(data).decode()}
+        )
+        out["bufferViews"].append({"buffer": len(out["buffers"]) - 1, "byteLength": len(data)})
+        out["accessors"].append(
+            {"bufferView": len(out["bufferViews"]) - 1, "componentType": 5125, "count": tris.size, "type": "SCALAR"}
+        )
+        prim["indices"], prim["mode"] = len(out["accessors"]) - 1, 4
+    return out
+
+
+def _load_trimesh(p: Path, doc: dict, binary: bytes | None, fail):
+    """trimesh's scene of the file; strip and fan primitives are handed to it as triangle lists."""
+    import io
+
+    import trimesh
+
+    rewritten = _triangulated(p, doc, binary, fail)
+    if rewritten is None:
+        # a binary glTF under another name is read by its magic bytes (files.py: model_kind)
+        kind = p.suffix.lower().lstrip(".") if p.suffix.lower() in GLTF_SUFFIXES else "glb"
+        return trimesh.load(str(p), file_type=kind, force="scene", process=False)
+    text = json.dumps(rewritten).encode()
+    if binary is None:
+        source, kind = io.BytesIO(text), "gltf"
+    else:
+        text += b" " * (-len(text) % 4)
+        binary += b"\0" * (-len(binary) % 4)
+        total = 12 + 8 + len(text) + 8 + len(binary)
+        source = io.BytesIO(
+            struct.pack("<III", 0x46546C67, 2, total)
+            + struct.pack("<II", len(text), 0x4E4F534A)
+            + text
+            + struct.pack("<II", len(binary), 0x004E4942)
+            + binary
+        )
+        kind = "glb"
+    resolver = trimesh.resolvers.FilePathResolver(str(p))
+    return trimesh.load(source, file_type=kind, force="scene", process=False, resolver=resolver)
+
+
+def _check_images(p: Path, doc: dict, binary: bytes | None, fail) -> None:
+    """Every image decodes to a bounded size (header read first); a bad one is a located error, not dropped."""
+    views = _items(doc, "bufferViews", fail)
+    # only images a texture samples as its core `source`: one named only by an extension (a KTX2
+    # beside a PNG fallback) is not read by trimesh, so it need not be readable here either
+    used = {t.get("source") for t in _items(doc, "textures", fail) if _natural(t.get("source"))}
+    for i, image in enumerate(_items(doc, "images", fail)):
+        if i not in used:
+            continue
+        where = f"images[{i}]" + (f" ({image['name']})" if isinstance(image.get("name"), str) else "")
+        if "uri" in image:
+            source = _check_uri(image["uri"], p.parent, f"images[{i}].uri", fail)
+            if source is None:  # a data: URI: decoded here too, a small one can claim a huge image
+                try:
+                    source = base64.b64decode(image["uri"].split(",", 1)[1])
+                except (IndexError, ValueError):
+                    raise fail(f"images[{i}].uri is not a base64 data: URI", "export the file again") from None
+        elif "bufferView" in image:
+            v = _index(image["bufferView"], len(views), f"images[{i}].bufferView", fail)
+            view = views[v]
+            b = _index(view.get("buffer", 0), len(doc.get("buffers", [])), f"bufferViews[{v}].buffer", fail)
+            try:
+                data = _buffer_bytes(p, doc, binary, b)
+            except (OSError, ValueError, IndexError) as exc:
+                raise fail(f"buffers[{b}] (of {where}) cannot be read: {exc}", "export the file again") from None
+            start, length = view.get("byteOffset", 0), view.get("byteLength", 0)
+            if not (_finite(start) and _finite(length)) or start < 0 or length < 0 or start + length > len(data):
+                raise fail(f"bufferViews[{v}] (of {where}) lies outside its buffer", "export the file again")
+            source = data[int(start) : int(start + length)]
+        else:
+            continue
+        try:
+            decode_image(source, where)
+        except ValueError as exc:
+            raise fail(str(exc), "re-export the texture as a PNG or JPEG no larger than the limit") from None
 
 
 def _exact_factors(doc: dict) -> dict[str, dict]:
@@ -56,7 +460,8 @@ def _exact_factors(doc: dict) -> dict[str, dict]:
     for m in mats:
         name = m.get("name")
         if name and names.count(name) == 1:
-            pbr = m.get("pbrMetallicRoughness") or {}
+            pbr = m.get("pbrMetallicRoughness")
+            pbr = pbr if isinstance(pbr, dict) else {}
             out[name] = {
                 "base_color": pbr.get("baseColorFactor"),
                 "metallic": pbr.get("metallicFactor"),
@@ -127,26 +532,42 @@ def _file_camera(doc: dict, label: str, lo: np.ndarray, hi: np.ndarray) -> Camer
     if far <= near:
         far = max(far_past(world[:3, 3], lo, hi), near * 10.0)
     fov_y = min(max(math.degrees(float(persp["yfov"])), 1e-3), 179.0)
-    return camera_from_matrix(world, fov_y, near, far)
+    camera = camera_from_matrix(world, fov_y, near, far)
+    if camera is None:
+        warn_scene(
+            f"{label}: its camera's node is scaled to zero or not finite, so it has no view direction; "
+            "a camera framing the model is used"
+        )
+    return camera
 
 
 def load_gltf(
     path: str | Path, file_for_errors: str | Path | None = None, line: int | None = None, key: str | None = None
 ) -> GltfContent:
     """Read a .glb/.gltf file into root Nodes with the file's hierarchy, materials and camera."""
-    import trimesh
 
     p = Path(path)
-    fail = file_error(p, file_for_errors, line, key)
-    if not p.is_file():
-        raise fail(f"glTF file not found: {p}", "check the path; relative paths resolve against the scene file")
+    cited = file_error(p, file_for_errors, line, key)
+
+    def fail(reason: str, hint: str) -> ConfigError:
+        # cited at the scene's line: the reason names the glTF file the object path belongs to
+        return cited(reason if file_for_errors is None or str(p) in reason else f"{p}: {reason}", hint)
+
+    check_file(p, fail, "glTF file")
     try:
-        # a binary glTF under another name is read by its magic bytes (files.py: model_kind)
-        kind = p.suffix.lower().lstrip(".") if p.suffix.lower() in GLTF_SUFFIXES else "glb"
-        tscene = trimesh.load(str(p), file_type=kind, force="scene", process=False)
+        doc, binary = _parse_document(p.read_bytes())
+    except (OSError, ValueError, struct.error, RecursionError) as exc:
+        raise fail(f"cannot read glTF file {p}: {exc}", MESH_FORMATS_HINT) from None
+    try:
+        _check_document(p, doc, binary, fail)
+    except (TypeError, ValueError, KeyError, IndexError, AttributeError) as exc:  # a wrong type in a field
+        raise fail(f"cannot read glTF file {p}: a field has the wrong type ({exc})", "export the file again") from None
+    try:
+        tscene = _load_trimesh(p, doc, binary, fail)
+    except ConfigError:
+        raise
     except Exception as exc:  # trimesh raises many types for unreadable input; all mean "bad file"
         raise fail(f"cannot read glTF file {p}: {exc}", MESH_FORMATS_HINT) from exc
-    doc = _file_json(p)
     roots = nodes_from_trimesh(tscene, str(p), fail, _exact_factors(doc))
     meshes = {id(n.mesh): n.mesh for root in roots for n, _ in root.walk() if n.mesh is not None}
     content = GltfContent(roots, meshes={m.name: m for m in meshes.values()})

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import io
+import os
+import re
+import stat
 from collections.abc import Callable
 from pathlib import Path
 
@@ -10,6 +13,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from .nodes import MeshData
+from .texture import decode_image
 
 MESH_FORMATS_HINT = "supported formats: .obj, .ply, .stl, .glb, .gltf (anything trimesh reads)"
 
@@ -23,6 +27,45 @@ def file_error(
         return ConfigError(reason, file_for_errors if file_for_errors is not None else p, line, key, hint)
 
     return fail
+
+
+def file_problem(path: str | Path) -> str | None:
+    """Why `path` cannot be read as a regular file (missing, a FIFO, a device, a folder, a NUL, a loop), or None.
+
+    Checked with os.stat before any open: opening a FIFO blocks until a writer comes, forever.
+    """
+    text = os.fspath(path)
+    if "\0" in text:
+        return "contains a NUL character"
+    if not text:
+        return "is empty"
+    try:
+        mode = os.stat(text).st_mode
+    except FileNotFoundError:
+        return "not found"
+    except OSError as exc:  # a symlink loop (ELOOP), a name too long, a folder without permission
+        return exc.strerror.lower() if exc.strerror else str(exc)
+    except ValueError as exc:
+        return str(exc)
+    if stat.S_ISREG(mode):
+        return None if os.access(text, os.R_OK) else "is not readable (permission denied)"
+    if stat.S_ISDIR(mode):
+        return "is a directory"
+    if stat.S_ISFIFO(mode):
+        return "is a FIFO, not a regular file"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "is a device, not a regular file"
+    return "is not a regular file"
+
+
+def check_file(path: str | Path, fail: Callable[[str, str], ConfigError], what: str) -> None:
+    """Raise fail(...) unless `path` is a readable regular file; `what` names it ("mesh file", "buffers[0].uri")."""
+    problem = file_problem(path)
+    if problem is not None:
+        raise fail(
+            f"{what} {problem}: {os.fspath(path)!r}",
+            "check the path; relative paths resolve against the file naming them",
+        )
 
 
 def _smooth_normals(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -67,6 +110,113 @@ def _texcoords(mesh, count: int) -> np.ndarray:
 _TEXT_FORMATS = (".obj", ".off")  # text formats whose non-UTF-8 bytes send trimesh to an undeclared charset detector
 
 
+def _side_file(path: Path, where: str, fail: Callable[[str, str], ConfigError]) -> None:
+    """Refuse a file an OBJ or MTL names when it exists but is no regular file (a FIFO would block forever).
+
+    A missing one is left to trimesh, which draws the mesh without it.
+    """
+    problem = file_problem(path)
+    if problem is not None and problem != "not found":
+        raise fail(f"{where} {problem}: {os.fspath(path)!r}", "name a regular file")
+
+
+def _named_files(line: str, base: Path) -> list[Path]:
+    """The files an `mtllib` or `map_*` line names: the whole rest of the line when it names a file, else each word."""
+    rest = line.split(None, 1)[1].strip() if len(line.split(None, 1)) > 1 else ""
+    if not rest:
+        return []
+    whole = base / rest
+    return [whole] if file_problem(whole) is None else [base / word for word in rest.split()]
+
+
+def check_mesh_source(p: Path, fail: Callable[[str, str], ConfigError]) -> None:
+    """What trimesh would read wrongly or hang on: an OBJ's face index 0 and its side files, a binary STL's count."""
+    suffix = p.suffix.lower()
+    if suffix == ".stl":
+        _check_stl(p, fail)
+    if suffix != ".obj":
+        return
+    text = p.read_bytes().decode("latin-1")
+    for number, line in enumerate(text.splitlines(), 1):
+        word = line.split(None, 1)[0] if line.strip() else ""
+        if word == "f":
+            for ref in line.split()[1:]:
+                first = ref.split("/", 1)[0]
+                if re.fullmatch(r"[-+]?0+", first):
+                    raise fail(
+                        f"{p}:{number}: face index 0 (OBJ indices start at 1)", "repair the mesh in a modelling tool"
+                    )
+        elif word == "mtllib":
+            for mtl in _named_files(line, p.parent):
+                _side_file(mtl, f"{p}:{number}: mtllib", fail)
+                if file_problem(mtl) is None:
+                    _check_mtl(mtl, fail)
+
+
+def _check_mtl(mtl: Path, fail: Callable[[str, str], ConfigError]) -> None:
+    """Texture maps an MTL names must be regular files where they exist; the colour map must decode (size bounded)."""
+    for number, line in enumerate(mtl.read_bytes().decode("latin-1").splitlines(), 1):
+        word = line.split(None, 1)[0].lower() if line.strip() else ""
+        if word.startswith("map_") or word in ("bump", "disp", "decal", "refl"):
+            parts = line.split()
+            if len(parts) > 1:
+                image = mtl.parent / parts[-1]
+                _side_file(image, f"{mtl}:{number}: {word}", fail)
+                if word == "map_kd" and file_problem(image) is None:  # trimesh would drop a bad one silently
+                    try:
+                        decode_image(image, str(image))
+                    except ValueError as exc:
+                        raise fail(f"{mtl}:{number}: {exc}", "re-export the texture as a PNG or JPEG") from None
+
+
+def _check_stl(p: Path, fail: Callable[[str, str], ConfigError]) -> None:
+    """A binary STL's triangle count must match the file's size (a header claiming 2**31 is not read)."""
+    size = p.stat().st_size
+    with p.open("rb") as f:
+        head = f.read(84)
+    if size < 84 or head[:5].lower() == b"solid" and b"\0" not in head[:80]:
+        return  # ASCII STL (or too short for binary): trimesh parses the text
+    count = int.from_bytes(head[80:84], "little")
+    if 84 + 50 * count != size:
+        raise fail(
+            f"{p}: its binary STL header claims {count} triangles ({84 + 50 * count} bytes) but the file has {size} bytes",
+            "the file is truncated or not an STL file; export it again",
+        )
+
+
+def check_finite(loaded, p: Path, fail: Callable[[str, str], ConfigError]) -> None:
+    """Refuse non-finite vertices before trimesh's processing drops them (and their triangles) silently."""
+    geoms = loaded.geometry.values() if hasattr(loaded, "geometry") else [loaded]
+    for geom in geoms:
+        vertices = getattr(geom, "vertices", None)
+        if vertices is not None and len(vertices) and not np.isfinite(np.asarray(vertices, dtype=np.float64)).all():
+            bad = int((~np.isfinite(np.asarray(vertices, dtype=np.float64))).any(axis=1).sum())
+            raise fail(
+                f"{p} has {bad} non-finite vertex position{'s' if bad != 1 else ''} (NaN or inf)",
+                "repair the mesh in a modelling tool",
+            )
+
+
+def load_checked(p: Path, trimesh, fail: Callable[[str, str], ConfigError], **kwargs):
+    """trimesh.load of a mesh file with its source checked first and its raw vertices checked before processing."""
+    check_mesh_source(p, fail)
+    try:
+        loaded = trimesh.load(**trimesh_load_args(p, trimesh), process=False, **kwargs)
+    except Exception as exc:  # trimesh raises many types for unreadable input; all mean "bad file"
+        raise fail(f"cannot read mesh file {p}: {exc}", MESH_FORMATS_HINT) from exc
+    check_finite(loaded, p, fail)
+    for geom in loaded.geometry.values() if hasattr(loaded, "geometry") else [loaded]:
+        if hasattr(geom, "process") and hasattr(geom, "faces"):
+            faces = np.asarray(geom.faces)
+            if faces.size and (faces.min() < 0 or faces.max() >= len(geom.vertices)):
+                raise fail(f"{p} has face indices outside its vertex list", "repair the mesh in a modelling tool")
+            try:
+                geom.process()  # what trimesh.load(process=True) does: merge duplicate vertices
+            except Exception as exc:  # as for trimesh.load: any failure means a bad file
+                raise fail(f"cannot read mesh file {p}: {exc}", MESH_FORMATS_HINT) from exc
+    return loaded
+
+
 def trimesh_load_args(p: Path, trimesh) -> dict:
     """trimesh.load arguments; text files that are not UTF-8 are decoded as Latin-1 here.
 
@@ -94,15 +244,8 @@ def load_mesh_file(
 
     p = Path(path)
     fail = file_error(p, file_for_errors, line, key)
-    if not p.is_file():
-        what = "is a directory, not a mesh file" if p.is_dir() else "not found"
-        raise fail(
-            f"mesh file {what}: {p}", "check the path; relative paths are resolved against the scene file's directory"
-        )
-    try:
-        loaded = trimesh.load(**trimesh_load_args(p, trimesh))
-    except Exception as exc:  # trimesh raises many types for unreadable input; all mean "bad file"
-        raise fail(f"cannot read mesh file {p}: {exc}", MESH_FORMATS_HINT) from exc
+    check_file(p, fail, "mesh file")
+    loaded = load_checked(p, trimesh, fail)
 
     if isinstance(loaded, trimesh.Scene):
         parts = [g for g in loaded.geometry.values() if isinstance(g, trimesh.Trimesh) and len(g.faces)]
@@ -126,6 +269,11 @@ def load_mesh_file(
 def trimesh_to_meshdata(loaded, name: str, fail, what: str) -> MeshData:
     """Validate one trimesh.Trimesh and convert it to MeshData; `fail(reason, hint)` builds the error."""
     positions = np.asarray(loaded.vertices, dtype=np.float64)
+    if positions.ndim != 2 or positions.shape[1] != 3:
+        raise fail(
+            f"{what} has vertex positions of shape {positions.shape}, not (N, 3)",
+            "positions are 3 floats a vertex (a glTF POSITION accessor is VEC3)",
+        )
     faces = np.asarray(loaded.faces, dtype=np.int64).reshape(-1, 3)
     if len(faces) == 0 or len(positions) == 0:
         raise fail(f"{what} has no triangles", "export the mesh with faces, not just vertices")

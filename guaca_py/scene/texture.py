@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import hashlib
+import io
+import os
+import struct
+import zlib
 
 import numpy as np
 
@@ -19,8 +23,11 @@ class TextureImage:
             px = px[:, :, None]
         if px.ndim != 3 or px.shape[2] not in (1, 2, 3, 4) or px.shape[0] < 1 or px.shape[1] < 1:
             raise ValueError(f"texture image must be (H, W[, 1-4]) pixels, got shape {np.shape(pixels)}")
-        if px.dtype != np.uint8:
-            px = np.clip(np.rint(np.asarray(px, dtype=np.float64) * 255.0), 0, 255).astype(np.uint8)
+        if px.dtype == np.uint16:  # 16-bit channels (e.g. a 16-bit PNG read by numpy): scaled, not clipped
+            px = np.rint(px.astype(np.float64) * (255.0 / 65535.0)).astype(np.uint8)
+        elif px.dtype != np.uint8:  # floats (and other integers) in 0..1
+            unit = np.nan_to_num(np.asarray(px, dtype=np.float64), nan=0.0, posinf=1.0, neginf=0.0)
+            px = np.clip(np.rint(unit * 255.0), 0, 255).astype(np.uint8)
         if px.shape[2] < 4:  # grey, grey+alpha, rgb -> rgba
             grey = px[:, :, :1]
             rgb = px[:, :, :3] if px.shape[2] >= 3 else np.repeat(grey, 3, axis=2)
@@ -40,3 +47,54 @@ class TextureImage:
 
     def __repr__(self) -> str:
         return f"TextureImage({self.name!r}, {self.size[0]}x{self.size[1]}, {self.digest[:8]})"
+
+
+#: the largest texture side decoded; the header is read first, so a larger image costs no memory
+MAX_TEXTURE_SIDE = 16384
+
+
+def rgba_pixels(img) -> np.ndarray:
+    """A PIL image as (H, W, 4) uint8 RGBA; 16-bit and 32-bit greyscale are scaled to 8 bits, not clipped.
+
+    Pillow's convert("RGBA") clips I;16 values above 255 to white; the top byte is the 8-bit value.
+    """
+    if img.mode in ("I;16", "I;16B", "I;16L", "I;16N", "I"):
+        wide = np.asarray(img, dtype=np.int64)
+        top = 65535 if img.mode.startswith("I;16") or wide.max(initial=0) <= 65535 else 2**31 - 1
+        grey = np.clip(np.rint(np.clip(wide, 0, top) * (255.0 / top)), 0, 255).astype(np.uint8)
+        return np.dstack([grey] * 3 + [np.full_like(grey, 255)])
+    if img.mode == "F":
+        grey = np.clip(np.rint(np.nan_to_num(np.asarray(img, dtype=np.float64)) * 255.0), 0, 255).astype(np.uint8)
+        return np.dstack([grey] * 3 + [np.full_like(grey, 255)])
+    return np.asarray(img.convert("RGBA"))
+
+
+def decode_image(source, name: str, limit: int = MAX_TEXTURE_SIDE, limit_name: str = "the largest read") -> np.ndarray:
+    """Decode an image file or bytes into RGBA8 pixels; ValueError (saying why) when it is not a readable image.
+
+    The size is read from the header before any pixel is decoded, so an image that would decode
+    past `limit` per side (or past Pillow's decompression-bomb bound, twice MAX_IMAGE_PIXELS) is
+    refused without allocating it.
+    """
+    from PIL import Image
+
+    if isinstance(source, (bytes, bytearray, memoryview)):
+        if len(source) == 0:
+            raise ValueError(f"texture {name} is empty")
+        source = io.BytesIO(bytes(source))
+    elif os.path.getsize(source) == 0:
+        raise ValueError(f"texture {name} is empty")
+    try:
+        with Image.open(source) as img:
+            w, h = img.size
+            if max(w, h) > limit or w < 1 or h < 1:
+                raise ValueError(f"texture {name} is {w}x{h}; {limit_name} is {limit}x{limit}")
+            img.load()
+            return rgba_pixels(img)
+    except Image.DecompressionBombError as exc:
+        raise ValueError(
+            f"texture {name} would decode to too many pixels ({exc}); {limit_name} is {limit}x{limit} "
+            f"and {2 * (Image.MAX_IMAGE_PIXELS or 0)} pixels"
+        ) from None
+    except (OSError, SyntaxError, EOFError, struct.error, zlib.error) as exc:
+        raise ValueError(f"texture {name} is not a readable image ({exc or type(exc).__name__})") from None

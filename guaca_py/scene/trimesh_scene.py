@@ -49,7 +49,7 @@ import numpy as np
 from ..errors import ConfigError
 from .mesh_io import trimesh_to_meshdata
 from .nodes import Camera, MaterialInstance, MeshData, Node, Transform, scene_bounds
-from .texture import TextureImage
+from .texture import TextureImage, rgba_pixels
 
 
 class SceneWarning(UserWarning):
@@ -68,7 +68,7 @@ def warn_scene(message: str) -> None:
 def _texture(img, name: str) -> TextureImage | None:
     if img is None:
         return None
-    return TextureImage(np.asarray(img.convert("RGBA")), name)
+    return TextureImage(rgba_pixels(img), name)
 
 
 def _float(value, default: float) -> float:
