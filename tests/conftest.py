@@ -13,6 +13,9 @@ def pytest_addoption(parser):
     group = parser.getgroup("fuzz", "fuzzing the file formats (tests/test_fuzz.py)")
     group.addoption("--fuzz-examples", type=int, default=40, help="examples per fuzzed format (CI: 40)")
     group.addoption("--fuzz-seed", type=int, default=None, help="random seed (default: a fixed sequence)")
+    group.addoption(
+        "--fuzz-cases", type=int, default=150, help="mutated model files per seed (tests/scene/test_hostile_models.py)"
+    )
 
 
 @pytest.fixture(scope="session")

@@ -546,10 +546,10 @@ def _json_paths(value, prefix=()):
 
 
 @pytest.mark.parametrize("seed", range(3))
-def test_mutated_gltf_is_loaded_or_refused_never_a_traceback(tmp_path, seed):
+def test_mutated_gltf_is_loaded_or_refused_never_a_traceback(tmp_path, seed, request):
     """Mutation fuzzing: 1-3 fields of a valid glTF set to hostile values; only ConfigError may come out.
 
-    GUACA_FUZZ_CASES raises the number of documents per seed (default 150) for a longer run.
+    `pytest --fuzz-cases N` raises the number of documents per seed (default 150) for a longer run.
     """
     import copy
     import random
@@ -561,7 +561,7 @@ def test_mutated_gltf_is_loaded_or_refused_never_a_traceback(tmp_path, seed):
     fields = [p for p in _json_paths(base) if p and p[0] != "buffers"]
     rng = random.Random(seed)
     path = tmp_path / "fuzz.gltf"
-    for _ in range(int(os.environ.get("GUACA_FUZZ_CASES", "150"))):
+    for _ in range(request.config.getoption("--fuzz-cases")):
         doc = copy.deepcopy(base)
         for field in rng.sample(fields, rng.randint(1, 3)):
             holder = doc  # an earlier mutation may have replaced a container on this field's path
@@ -582,10 +582,10 @@ def test_mutated_gltf_is_loaded_or_refused_never_a_traceback(tmp_path, seed):
 
 
 @pytest.mark.parametrize("seed", range(2))
-def test_byte_mutated_mesh_files_are_loaded_or_refused_never_a_traceback(tmp_path, seed):
+def test_byte_mutated_mesh_files_are_loaded_or_refused_never_a_traceback(tmp_path, seed, request):
     """Byte-level fuzzing of OBJ, STL, PLY, OFF and GLB files (truncations and overwritten bytes).
 
-    GUACA_FUZZ_CASES raises the number of files per seed (default 150) for a longer run.
+    `pytest --fuzz-cases N` raises the number of files per seed (default 150) for a longer run.
     """
     import random
     import warnings
@@ -601,7 +601,7 @@ def test_byte_mutated_mesh_files_are_loaded_or_refused_never_a_traceback(tmp_pat
         sources[ext] = data.encode() if isinstance(data, str) else data
     rng = random.Random(seed)
     hostile = [0, 255, ord("-"), ord("n"), ord("9"), ord(" "), ord("\n")]
-    for _ in range(int(os.environ.get("GUACA_FUZZ_CASES", "150"))):
+    for _ in range(request.config.getoption("--fuzz-cases")):
         ext = rng.choice(sorted(sources))
         data = bytearray(sources[ext])
         if rng.random() < 0.3:
