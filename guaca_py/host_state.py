@@ -20,11 +20,13 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import threading
 from contextlib import contextmanager
 from functools import lru_cache
 
 import moderngl
 
+from .errors import GuacaError
 from .gl_state import BOOL, FLOAT, INT, RawGL, load_library, raw_gl
 
 # ---- GL enums ---------------------------------------------------------------------------
@@ -367,6 +369,14 @@ def on_context(fn):
 
     @functools.wraps(fn)
     def wrapper(self, *args, **kwargs):
+        if getattr(self, "released", False):
+            raise GuacaError(f"{fn.__name__}: this Renderer was released; make a new Renderer to render again")
+        owner = getattr(self, "thread", None)
+        if owner is not None and owner != threading.get_ident():
+            raise GuacaError(
+                f"{fn.__name__}: called from another thread than the one that made this Renderer; GL calls belong "
+                "to the context's thread: render from that thread, or make a Renderer in this one"
+            )
         with self._gl():
             return fn(self, *args, **kwargs)
 

@@ -9,8 +9,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
+from ..errors import ConfigError
 from .nodes import (
     LIGHT_TYPES,
+    MAX_RADIANCE,
     MAX_WORLD,
     Camera,
     Light,
@@ -31,6 +35,29 @@ class Scene:
     lights: list[Light] = field(default_factory=list)
     nodes: list[Node] = field(default_factory=list)
     source: Path | None = None
+
+    def __post_init__(self):
+        self.check_background()
+
+    def check_background(self) -> None:
+        """Refuse a background that is not 3 finite numbers in [-MAX_RADIANCE, MAX_RADIANCE] (ConfigError)."""
+        try:
+            bg = np.asarray(self.background, dtype=np.float64)
+        except (TypeError, ValueError):
+            bg = None
+        if bg is None or bg.shape != (3,) or not np.all(np.isfinite(bg)) or np.max(np.abs(bg)) > MAX_RADIANCE:
+            raise ConfigError(
+                f"must be 3 finite numbers of magnitude at most {MAX_RADIANCE:g}, got {self.background!r}",
+                key="background",
+                hint="linear RGB, e.g. (0.1, 0.1, 0.1)",
+            )
+
+    def check(self) -> None:
+        """Refuse a camera, lights or background no frame can be drawn with (each names its field)."""
+        self.camera.check()
+        self.check_background()
+        for i, light in enumerate(self.lights):
+            light.check(f"lights[{i}]")
 
     def walk(self):
         """Yield (node, world matrix) for every node in the scene, in document order."""
@@ -56,6 +83,7 @@ class Scene:
 
 __all__ = [
     "LIGHT_TYPES",
+    "MAX_RADIANCE",
     "MAX_WORLD",
     "Camera",
     "Light",
