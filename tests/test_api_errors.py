@@ -166,6 +166,20 @@ def test_light_changed_after_construction_is_refused_at_render(own):
         own.render(s, SIZE, SIZE)
 
 
+def test_scene_check_names_the_scene_file(tmp_path):
+    s = Scene(source=tmp_path / "lit.yaml", lights=[Light(type="point")])
+    s.lights[0].color = (1.0e38, 1.0, 1.0)
+    with pytest.raises(ConfigError, match=r"lit\.yaml: 'lights\[0\]\.intensity': color .* exceeds 1e\+06"):
+        s.check()
+    s.lights[0].color = (1.0, 1.0, 1.0)
+    s.lights.append(Light(type="spot"))
+    s.lights[1].direction = (0.0, 0.0, 0.0)
+    with pytest.raises(ConfigError, match=r"'lights\[1\]\.direction'"):
+        s.check()
+    s.lights[1].direction = (0.0, -1.0, 0.0)
+    s.check()
+
+
 def test_huge_light_direction_is_normalised_without_overflow(own):
     s = scene()
     s.lights = [Light(type="directional", direction=(1.0e300, -1.0e300, 0.0))]

