@@ -371,6 +371,12 @@ def on_context(fn):
     def wrapper(self, *args, **kwargs):
         if getattr(self, "released", False):
             raise GuacaError(f"{fn.__name__}: this Renderer was released; make a new Renderer to render again")
+        ctx = getattr(self, "ctx", None)
+        if ctx is not None and isinstance(ctx.mglo, moderngl.InvalidObject):
+            raise GuacaError(
+                f"{fn.__name__}: the moderngl context this Renderer draws in was released; "
+                "release the Renderer before its context, and make a new one to render again"
+            )
         owner = getattr(self, "thread", None)
         if owner is not None and owner != threading.get_ident():
             raise GuacaError(

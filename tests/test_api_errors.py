@@ -61,6 +61,20 @@ def test_released_or_foreign_context_is_refused():
         Renderer("default", "ctx")
 
 
+def test_render_after_the_host_released_its_context():
+    ctx = moderngl.create_context(standalone=True, backend="egl", require=450)
+    r = Renderer("default", ctx)
+    ctx.release()
+    with pytest.raises(GuacaError, match="context this Renderer draws in was released"):
+        r.render(scene(), SIZE, SIZE)
+    r.release()  # nothing left to free: no error
+
+
+def test_numpy_integers_are_a_size(own):
+    frame = own.render(scene(), np.int64(SIZE), np.uint16(SIZE // 2))
+    assert frame.image.shape == (SIZE // 2, SIZE, 3)
+
+
 def test_render_from_another_thread_names_the_contexts_thread(own):
     caught = []
 
