@@ -146,12 +146,17 @@ def quad(**change) -> MeshData:
         (dict(normals=np.zeros((3, 3), np.float32)), "normals has 3 rows for 4 positions"),
         (dict(texcoords=np.zeros((5, 2), np.float32)), "texcoords has 5 rows for 4 positions"),
         (dict(indices=np.zeros((1, 3), np.float32)), "indices must be integers"),
+        (dict(indices=np.zeros(4, np.uint32)), r"indices must have shape \(n, 3\)"),
     ],
 )
 def test_meshdata_refuses_inconsistent_arrays_naming_the_mesh(change, match):
     with pytest.raises(ConfigError, match=match) as info:
         quad(**change)
     assert "mesh 'bad'" in str(info.value)
+
+
+def test_meshdata_takes_a_flat_index_list():
+    assert quad(indices=np.array([0, 1, 2, 0, 2, 3], dtype=np.uint32)).indices.shape == (6,)
 
 
 # ------------------------------------------------------------------ lights and background

@@ -123,7 +123,9 @@ class MeshData:
         for field_name, cols in (("positions", 3), ("normals", 3), ("texcoords", 2), ("indices", 3)):
             a = getattr(self, field_name)
             shape = getattr(a, "shape", None)
-            if shape is None or len(shape) != 2 or shape[1] != cols:
+            if field_name == "indices" and shape is not None and len(shape) == 1 and shape[0] % 3 == 0:
+                pass  # a flat index list, three a triangle, draws the same
+            elif shape is None or len(shape) != 2 or shape[1] != cols:
                 raise fail(
                     f"{field_name} must have shape (n, {cols}), got {shape if shape is not None else type(a).__name__}"
                 )
