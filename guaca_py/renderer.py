@@ -100,6 +100,13 @@ class Renderer:
             )
         if ctx is not None and isinstance(ctx.mglo, moderngl.InvalidObject):
             raise ConfigError("the moderngl context was released", key="ctx", hint="pass a live context, or None")
+        if not isinstance(pipeline, (str, Path, PipelineConfig)):
+            raise ArgumentError(
+                f"must be a pipeline name, a path or a PipelineConfig, got {type(pipeline).__name__}", key="pipeline"
+            )
+        # one folder given as a string is one folder, not a list of one-letter ones
+        material_paths = [material_paths] if isinstance(material_paths, (str, Path)) else material_paths
+        template_paths = [template_paths] if isinstance(template_paths, (str, Path)) else template_paths
         previous = native().current()  # creating a context makes it current: the host's comes back
         self.fuse_passes = fuse_passes  # False keeps every pass separate (comparisons, debugging)
         self.owns_context = ctx is None
@@ -193,6 +200,8 @@ class Renderer:
         `method_auto` says which and why, and the frame stats repeat it.
         """
         require_method_id(mid, "method")  # a pipeline file's method was checked with its line when read
+        if overrides is not None and not isinstance(overrides, dict):
+            raise ArgumentError(f"must be a dict of settings, got {type(overrides).__name__}", key="method_overrides")
         self.method_auto = None
         if mid == auto.AUTO:
             method_settings(mid, {}, overrides)  # checked as settings of any method auto may pick
@@ -284,8 +293,14 @@ class Renderer:
             self.config.resolution[0] if width is None else width,
             self.config.resolution[1] if height is None else height,
         )
+        if viewport is not None:
+            _check_viewport(viewport)
         host = host_target(target, w, h, viewport) if over_target else None  # refused before any work
-        draws = build_draw_list(scene, self.materials, self.draw_cache)
+        try:
+            draws = build_draw_list(scene, self.materials, self.draw_cache)
+        except (AttributeError, TypeError):
+            scene.check_structure()  # a part of the wrong type: named here (not checked on every frame)
+            raise
         frame = FrameContext(
             self.device, self.method, self.raster, scene, w, h, draws, *self.camera_matrices(scene, w, h)
         )
@@ -418,6 +433,19 @@ class Renderer:
 
 class ArgumentError(ConfigError, TypeError):
     """An argument of the wrong kind (still a TypeError, as Python's own checks raise)."""
+
+
+def _check_viewport(viewport) -> None:
+    """Refuse a viewport that is not (x, y, width, height) of integers, x and y >= 0, width and height >= 1."""
+    try:
+        ok = len(viewport) == 4 and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in viewport)
+    except TypeError:
+        ok = False
+    if not ok or min(viewport[:2]) < 0 or min(viewport[2:]) < 1:
+        raise ArgumentError(
+            f"must be (x, y, width, height) integers, x and y >= 0, width and height >= 1; got {viewport!r}",
+            key="viewport",
+        )
 
 
 def _release_parts(parts: dict) -> None:

@@ -14,7 +14,7 @@ from conftest import quad_node, simple_scene, unit_quad
 from guaca_py import Renderer
 from guaca_py.errors import ConfigError, GuacaError
 from guaca_py.host_state import count_gl_objects
-from guaca_py.scene.graph import Camera, Light, MeshData, Scene
+from guaca_py.scene.graph import Camera, Light, MaterialInstance, MeshData, Node, Scene, Transform
 
 SIZE = 16
 
@@ -257,3 +257,46 @@ def test_dropped_renderers_with_own_contexts_do_not_grow_memory():
         one()
         gc.collect()
     assert rss_mb() - start < 40.0  # ~6.5 MB each (130 MB) when they leaked
+
+
+# ------------------------------------------------------------------ wrong kinds of arguments and parts
+def test_renderer_arguments_of_the_wrong_kind(own, tmp_path):
+    with pytest.raises(ConfigError, match="'pipeline': must be a pipeline name"):
+        Renderer(5)
+    with pytest.raises(ConfigError, match="'method_overrides': must be a dict"):
+        own.set_method("presort_lf_et", [1])
+    with pytest.raises(ConfigError, match=r"missing: 'material_paths': material directory not found"):
+        Renderer(material_paths=str(tmp_path / "missing"))  # one folder as a string, not a list of letters
+    target = own.ctx.texture((SIZE, SIZE), 4)
+    for viewport in [(0, 0, -1, 5), "abcd", (0, 0, 4.5, 4)]:
+        with pytest.raises(ConfigError, match="'viewport': must be"):
+            own.render(scene(), SIZE, SIZE, target=target, viewport=viewport)
+    target.release()
+
+
+@pytest.mark.parametrize(
+    "make, key",
+    [
+        (lambda s: setattr(s, "camera", None), "'camera': must be a Camera"),
+        (lambda s: setattr(s, "lights", Light()), "'lights': must be a list"),
+        (lambda s: s.lights.append(None), r"'lights\[0\]': must be a Light"),
+        (lambda s: s.nodes.append(None), r"'nodes\[1\]': must be a Node"),
+        (lambda s: setattr(s.nodes[0], "transform", None), r"'nodes\[0\]\.transform': must be a Transform"),
+        (lambda s: setattr(s.nodes[0], "material", "unlit"), r"'nodes\[0\]\.material': must be a MaterialInstance"),
+        (lambda s: s.nodes[0].children.append("x"), r"'nodes\[0\]\.children\[0\]': must be a Node"),
+    ],
+)
+def test_scene_parts_of_the_wrong_type_are_named(own, make, key):
+    s = scene()
+    make(s)
+    with pytest.raises(ConfigError, match=key):
+        own.render(s, SIZE, SIZE)
+
+
+def test_transform_values_must_be_finite():
+    with pytest.raises(ConfigError, match="'Transform.translation': must be 3 finite numbers") as info:
+        Transform(translation=(math.nan, 0.0, 0.0))
+    assert isinstance(info.value, ValueError)
+    with pytest.raises(ConfigError, match="'Transform.scale'"):
+        Transform(scale=(1.0, 1.0))
+    assert Node(transform=Transform(translation=np.float32([1, 2, 3])), material=MaterialInstance()).mesh is None

@@ -52,9 +52,27 @@ class Scene:
                 hint="linear RGB, e.g. (0.1, 0.1, 0.1)",
             )
 
+    def check_structure(self) -> None:
+        """Refuse parts of the wrong type: a camera that is not a Camera, a node that is not a Node... (ConfigError)."""
+        if not isinstance(self.camera, Camera):
+            raise ConfigError(f"must be a Camera, got {type(self.camera).__name__}", key="camera")
+        for key, kind in (("lights", Light), ("nodes", Node)):
+            items = getattr(self, key)
+            if not isinstance(items, list):
+                raise ConfigError(f"must be a list of {kind.__name__}s, got {type(items).__name__}", key=key)
+            for i, item in enumerate(items):
+                if key == "nodes":
+                    _check_node(item, f"nodes[{i}]")
+                elif not isinstance(item, kind):
+                    raise ConfigError(f"must be a {kind.__name__}, got {type(item).__name__}", key=f"{key}[{i}]")
+
     def check(self) -> None:
         """Refuse a camera, lights or background no frame can be drawn with (each names its field, and the file)."""
         try:
+            if not isinstance(self.camera, Camera) or not isinstance(self.lights, list):
+                self.check_structure()
+            if not all(isinstance(light, Light) for light in self.lights):
+                self.check_structure()
             self.camera.check()
             self.check_background()
             if not _lights_plausible(self.lights):  # the per-light check, ~30 us each, runs to name the culprit
@@ -85,6 +103,24 @@ class Scene:
         nodes, camera = trimesh_contents(scene)
         camera, lights = camera_and_lights(nodes, camera, "trimesh scene")
         return cls(camera=camera, lights=lights, nodes=nodes)
+
+
+def _check_node(node, where: str) -> None:
+    """Refuse a node, or a part of it, of the wrong type (ConfigError naming its path in the tree)."""
+    if not isinstance(node, Node):
+        raise ConfigError(f"must be a Node, got {type(node).__name__}", key=where)
+    for attr, kind, optional in (
+        ("transform", Transform, False),
+        ("mesh", MeshData, True),
+        ("material", MaterialInstance, True),
+    ):
+        value = getattr(node, attr)
+        if not isinstance(value, kind) and not (optional and value is None):
+            raise ConfigError(f"must be a {kind.__name__}, got {type(value).__name__}", key=f"{where}.{attr}")
+    if not isinstance(node.children, list):
+        raise ConfigError(f"must be a list of Nodes, got {type(node.children).__name__}", key=f"{where}.children")
+    for i, child in enumerate(node.children):
+        _check_node(child, f"{where}.children[{i}]")
 
 
 def _lights_plausible(lights: list[Light]) -> bool:

@@ -14,6 +14,11 @@ from pyglm import glm
 
 from ..errors import ConfigError
 
+
+class ValueConfigError(ConfigError, ValueError):
+    """A value of the wrong shape or range given to a scene part (still a ValueError, as numpy's own checks raise)."""
+
+
 _AXES = (glm.dvec3(1.0, 0.0, 0.0), glm.dvec3(0.0, 1.0, 0.0), glm.dvec3(0.0, 0.0, 1.0))
 
 
@@ -23,9 +28,9 @@ def _checked_matrix(matrix) -> np.ndarray:
     if m.shape == (16,):
         m = m.reshape(4, 4)
     if m.shape != (4, 4):
-        raise ValueError(f"a transform matrix is 4x4, got shape {m.shape}")
+        raise ValueConfigError(f"a transform matrix is 4x4, got shape {m.shape}", key="Transform.matrix")
     if not np.all(np.isfinite(m)):
-        raise ValueError("a transform matrix must be finite (no NaN or inf)")
+        raise ValueConfigError("a transform matrix must be finite (no NaN or inf)", key="Transform.matrix")
     return m
 
 
@@ -46,6 +51,9 @@ class Transform:
         *,
         matrix=None,
     ):
+        for key, v in (("translation", translation), ("rotation_deg", rotation_deg), ("scale", scale)):
+            if _vector3(v) is None:
+                raise ValueConfigError(f"must be 3 finite numbers, got {v!r}", key=f"Transform.{key}")
         self.translation, self.rotation_deg, self.scale = translation, rotation_deg, scale
         self._matrix = None if matrix is None else _checked_matrix(matrix)
         self._glm = None if self._matrix is None else glm.dmat4(self._matrix)
