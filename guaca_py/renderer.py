@@ -436,9 +436,15 @@ class ArgumentError(ConfigError, TypeError):
 
 
 def _check_viewport(viewport) -> None:
-    """Refuse a viewport that is not (x, y, width, height) of integers, x and y >= 0, width and height >= 1."""
+    """Refuse a viewport that is not (x, y, width, height) of whole numbers, x and y >= 0, width and height >= 1."""
+
+    def whole(v) -> bool:  # 4.0 from a host's float arithmetic is a size; 4.5 or True is not
+        if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)):
+            return False
+        return float(v).is_integer()
+
     try:
-        ok = len(viewport) == 4 and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in viewport)
+        ok = len(viewport) == 4 and all(whole(v) for v in viewport)
     except TypeError:
         ok = False
     if not ok or min(viewport[:2]) < 0 or min(viewport[2:]) < 1:

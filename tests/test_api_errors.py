@@ -267,10 +267,13 @@ def test_renderer_arguments_of_the_wrong_kind(own, tmp_path):
         own.set_method("presort_lf_et", [1])
     with pytest.raises(ConfigError, match=r"missing: 'material_paths': material directory not found"):
         Renderer(material_paths=str(tmp_path / "missing"))  # one folder as a string, not a list of letters
+    own.ctx.__enter__()  # moderngl creates objects in the current context: make it the renderer's
     target = own.ctx.texture((SIZE, SIZE), 4)
     for viewport in [(0, 0, -1, 5), "abcd", (0, 0, 4.5, 4)]:
         with pytest.raises(ConfigError, match="'viewport': must be"):
             own.render(scene(), SIZE, SIZE, target=target, viewport=viewport)
+    frame = own.render(scene(), SIZE // 2, SIZE // 2, target=target, viewport=(0.0, 0, np.int32(SIZE // 2), SIZE / 2))
+    assert frame.image.shape == (SIZE // 2, SIZE // 2, 3)  # whole numbers of any type are a viewport
     target.release()
 
 
