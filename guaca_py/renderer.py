@@ -107,6 +107,7 @@ class Renderer:
         # one folder given as a string is one folder, not a list of one-letter ones
         material_paths = [material_paths] if isinstance(material_paths, (str, Path)) else material_paths
         template_paths = [template_paths] if isinstance(template_paths, (str, Path)) else template_paths
+        release_dropped()
         previous = native().current()  # creating a context makes it current: the host's comes back
         self.fuse_passes = fuse_passes  # False keeps every pass separate (comparisons, debugging)
         self.owns_context = ctx is None
@@ -131,7 +132,9 @@ class Renderer:
         else:
             # a renderer dropped without release() frees its GPU objects (and its own context) when
             # collected: the finalizer holds the instance's attributes, never the instance
-            self._finalizer = weakref.finalize(self, _release_parts, self.__dict__)
+            # (queued by the collector, freed at the next Renderer's construction: GL calls made at an
+            # arbitrary allocation would run in the middle of whatever GL work the thread is doing)
+            self._finalizer = weakref.finalize(self, _DROPPED.append, self.__dict__)
             self._finalizer.atexit = False  # at exit the process's contexts go with it; nothing to free
         finally:
             if previous is not None and self.owns_context:
@@ -428,7 +431,8 @@ class Renderer:
 
     def release(self) -> None:
         """Free every GPU resource the renderer holds, and its context when it made its own."""
-        self._finalizer()  # runs once: a second release(), or the collector afterwards, does nothing
+        if self._finalizer.detach() is not None:  # once: a second release() does nothing
+            _release_parts(self.__dict__)
 
 
 class ArgumentError(ConfigError, TypeError):
@@ -454,10 +458,19 @@ def _check_viewport(viewport) -> None:
         )
 
 
+_DROPPED: list[dict] = []  # attributes of renderers collected without release(), waiting to be freed
+
+
+def release_dropped() -> None:
+    """Free the GPU objects of renderers collected without release() (each new Renderer does this first)."""
+    while _DROPPED:
+        _release_parts(_DROPPED.pop())
+
+
 def _release_parts(parts: dict) -> None:
     """Release a renderer's GPU objects (given its attributes), then its context when it made it.
 
-    Run by release() or, for a renderer dropped without it, by the collector. GL objects go with
+    Run by release() or, for a renderer dropped without it, by release_dropped(). GL objects go with
     their context current; a host's context is made current for it and left alive. A renderer
     collected in a thread other than its context's cannot make that context current there: its
     objects then go when that context is released.

@@ -14,17 +14,28 @@ from conftest import quad_node, simple_scene, unit_quad
 from guaca_py import Renderer
 from guaca_py.errors import ConfigError, GuacaError
 from guaca_py.host_state import count_gl_objects
+from guaca_py.renderer import release_dropped
 from guaca_py.scene.graph import Camera, Light, MaterialInstance, MeshData, Node, Scene, Transform
 
 SIZE = 16
 
 
+@pytest.fixture(autouse=True)
+def _shared_context_current_after(gl_context):
+    """Renderers of their own contexts make those current: later modules' fixtures expect the shared one."""
+    yield
+    gc.collect()
+    release_dropped()
+    gl_context.__enter__()
+
+
 @pytest.fixture(scope="module")
-def own():
+def own(gl_context):
     """A renderer with a context of its own (the thread and release checks apply to it)."""
     r = Renderer("default")
     yield r
     r.release()
+    gl_context.__enter__()
 
 
 def scene() -> Scene:
@@ -235,6 +246,7 @@ def test_dropped_renderers_free_their_gpu_objects(gl_context):
         r.render(scene(), SIZE, SIZE)
         del r
         gc.collect()
+    release_dropped()  # what the next Renderer would do first
     gl_context.__enter__()
     assert count_gl_objects() == before
 
