@@ -20,11 +20,13 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import threading
 from contextlib import contextmanager
 from functools import lru_cache
 
 import moderngl
 
+from .errors import GuacaError
 from .gl_state import BOOL, FLOAT, INT, RawGL, load_library, raw_gl
 
 # ---- GL enums ---------------------------------------------------------------------------
@@ -367,6 +369,20 @@ def on_context(fn):
 
     @functools.wraps(fn)
     def wrapper(self, *args, **kwargs):
+        if getattr(self, "released", False):
+            raise GuacaError(f"{fn.__name__}: this Renderer was released; make a new Renderer to render again")
+        ctx = getattr(self, "ctx", None)
+        if ctx is not None and isinstance(ctx.mglo, moderngl.InvalidObject):
+            raise GuacaError(
+                f"{fn.__name__}: the moderngl context this Renderer draws in was released; "
+                "release the Renderer before its context, and make a new one to render again"
+            )
+        owner = getattr(self, "thread", None)
+        if owner is not None and owner != threading.get_ident():
+            raise GuacaError(
+                f"{fn.__name__}: called from another thread than the one that made this Renderer; GL calls belong "
+                "to the context's thread: render from that thread, or make a Renderer in this one"
+            )
         with self._gl():
             return fn(self, *args, **kwargs)
 

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import threading
 import time
+import weakref
 from pathlib import Path
 
 import moderngl
@@ -13,7 +15,7 @@ from .context import create_context
 from .errors import ConfigError, GuacaError, UnsupportedMethodError
 from .gpu_resources import MeshCache, TextureCache
 from .gpu_timer import TimerQuery
-from .host_state import ContextGuard, native, on_context
+from .host_state import ContextGuard, native, native_handle, on_context
 from .limits import check_resolution
 from .materials import MaterialRegistry
 from .methods import auto, method_class, require_method_id
@@ -90,9 +92,28 @@ class Renderer:
         restore_host_state: bool = True,
         fuse_passes: bool = True,
     ):
+        if ctx is not None and not isinstance(ctx, moderngl.Context):
+            raise ConfigError(
+                f"must be a moderngl.Context, got {type(ctx).__name__}",
+                key="ctx",
+                hint="or None for a context of its own",
+            )
+        if ctx is not None and isinstance(ctx.mglo, moderngl.InvalidObject):
+            raise ConfigError("the moderngl context was released", key="ctx", hint="pass a live context, or None")
+        if not isinstance(pipeline, (str, Path, PipelineConfig)):
+            raise ArgumentError(
+                f"must be a pipeline name, a path or a PipelineConfig, got {type(pipeline).__name__}", key="pipeline"
+            )
+        # one folder given as a string is one folder, not a list of one-letter ones
+        material_paths = [material_paths] if isinstance(material_paths, (str, Path)) else material_paths
+        template_paths = [template_paths] if isinstance(template_paths, (str, Path)) else template_paths
+        release_dropped()
         previous = native().current()  # creating a context makes it current: the host's comes back
         self.fuse_passes = fuse_passes  # False keeps every pass separate (comparisons, debugging)
         self.owns_context = ctx is None
+        # an EGL context is current in one thread at a time: the renderer's own stays with the thread that made it
+        self.thread = threading.get_ident() if self.owns_context else None
+        self.released = False
         if self.owns_context:
             self.ctx, self.caps = create_context(None, disable)  # a new context is current
             self._gl = ContextGuard(self.ctx, restore_state=False)
@@ -108,6 +129,13 @@ class Renderer:
             if self.owns_context:
                 self.ctx.release()
             raise
+        else:
+            # a renderer dropped without release() frees its GPU objects (and its own context) when
+            # collected: the finalizer holds the instance's attributes, never the instance
+            # (queued by the collector, freed at the next Renderer's construction: GL calls made at an
+            # arbitrary allocation would run in the middle of whatever GL work the thread is doing)
+            self._finalizer = weakref.finalize(self, _DROPPED.append, self.__dict__)
+            self._finalizer.atexit = False  # at exit the process's contexts go with it; nothing to free
         finally:
             if previous is not None and self.owns_context:
                 native().make_current(previous)
@@ -175,6 +203,8 @@ class Renderer:
         `method_auto` says which and why, and the frame stats repeat it.
         """
         require_method_id(mid, "method")  # a pipeline file's method was checked with its line when read
+        if overrides is not None and not isinstance(overrides, dict):
+            raise ArgumentError(f"must be a dict of settings, got {type(overrides).__name__}", key="method_overrides")
         self.method_auto = None
         if mid == auto.AUTO:
             method_settings(mid, {}, overrides)  # checked as settings of any method auto may pick
@@ -256,14 +286,24 @@ class Renderer:
         on a GPU, the per-pass times are the previous frame's (`stats["passes_of"]`), so reading
         them never waits for this frame.
         """
-        scene = as_scene(scene)  # a trimesh scene or mesh converts (once per content); anything else is named
+        try:
+            scene = as_scene(scene)  # a trimesh scene or mesh converts (once per content); anything else is named
+        except TypeError as exc:
+            raise ArgumentError(str(exc), key="scene") from None
+        scene.check()  # the data classes are mutable: a camera or light changed since construction is checked here
         w, h = check_resolution(
             self.caps.limits,
             self.config.resolution[0] if width is None else width,
             self.config.resolution[1] if height is None else height,
         )
+        if viewport is not None:
+            _check_viewport(viewport)
         host = host_target(target, w, h, viewport) if over_target else None  # refused before any work
-        draws = build_draw_list(scene, self.materials, self.draw_cache)
+        try:
+            draws = build_draw_list(scene, self.materials, self.draw_cache)
+        except (AttributeError, TypeError):
+            scene.check_structure()  # a part of the wrong type: named here (not checked on every frame)
+            raise
         frame = FrameContext(
             self.device, self.method, self.raster, scene, w, h, draws, *self.camera_matrices(scene, w, h)
         )
@@ -389,27 +429,72 @@ class Renderer:
 
         return lambda: read(self)
 
-    @on_context
-    def _release_gpu(self) -> None:
-        for p in self.passes:
-            p.release()
-        self.presenter.release()
-        self.method.release()
-        self.raster.release()
-        for q in self._queries.values():
-            q.release()
-        self._queries.clear()
-        self.device.release()
-
     def release(self) -> None:
         """Free every GPU resource the renderer holds, and its context when it made its own."""
-        if getattr(self, "released", False):
-            return
-        if isinstance(self.ctx.mglo, moderngl.InvalidObject):  # the context went first: so did our objects
-            self.released = True
-            return
-        self._release_gpu()
-        self.frame_serial += 1  # outstanding FrameResults can no longer read their texture
-        self.released = True
-        if self.owns_context:
-            self.ctx.release()
+        if self._finalizer.detach() is not None:  # once: a second release() does nothing
+            _release_parts(self.__dict__)
+
+
+class ArgumentError(ConfigError, TypeError):
+    """An argument of the wrong kind (still a TypeError, as Python's own checks raise)."""
+
+
+def _check_viewport(viewport) -> None:
+    """Refuse a viewport that is not (x, y, width, height) of whole numbers, x and y >= 0, width and height >= 1."""
+
+    def whole(v) -> bool:  # 4.0 from a host's float arithmetic is a size; 4.5 or True is not
+        if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)):
+            return False
+        return float(v).is_integer()
+
+    try:
+        ok = len(viewport) == 4 and all(whole(v) for v in viewport)
+    except TypeError:
+        ok = False
+    if not ok or min(viewport[:2]) < 0 or min(viewport[2:]) < 1:
+        raise ArgumentError(
+            f"must be (x, y, width, height) integers, x and y >= 0, width and height >= 1; got {viewport!r}",
+            key="viewport",
+        )
+
+
+_DROPPED: list[dict] = []  # attributes of renderers collected without release(), waiting to be freed
+
+
+def release_dropped() -> None:
+    """Free the GPU objects of renderers collected without release() (each new Renderer does this first)."""
+    while _DROPPED:
+        _release_parts(_DROPPED.pop())
+
+
+def _release_parts(parts: dict) -> None:
+    """Release a renderer's GPU objects (given its attributes), then its context when it made it.
+
+    Run by release() or, for a renderer dropped without it, by release_dropped(). GL objects go with
+    their context current; a host's context is made current for it and left alive. A renderer
+    collected in a thread other than its context's cannot make that context current there: its
+    objects then go when that context is released.
+    """
+    ctx, gl = parts["ctx"], parts["_gl"]
+    parts["released"] = True
+    parts["frame_serial"] += 1  # outstanding FrameResults can no longer read their texture
+    if isinstance(ctx.mglo, moderngl.InvalidObject):  # the context went first: so did our objects
+        return
+    owner = parts["thread"]
+    if owner is not None and owner != threading.get_ident():
+        return
+    previous = native().current()
+    with gl():
+        for p in parts["passes"]:
+            p.release()
+        parts["presenter"].release()
+        parts["method"].release()
+        parts["raster"].release()
+        for q in parts["_queries"].values():
+            q.release()
+        parts["_queries"].clear()
+        parts["device"].release()
+    if parts["owns_context"]:
+        ctx.release()
+        if previous is not None and native_handle(previous) != gl.handle:
+            native().make_current(previous)

@@ -140,6 +140,7 @@ def exact_tile_lights(
                 out[i] = dist < rad[i]
                 continue
             axis = np.asarray(light.direction, dtype=np.float64)
+            axis = axis / np.max(np.abs(axis))  # scaled first: a norm of 1e300 components overflows
             axis = axis / np.linalg.norm(axis)
             theta = math.radians(light.outer_angle_deg)
             in_cone = (dist == 0.0) | (off @ axis >= dist * math.cos(theta))

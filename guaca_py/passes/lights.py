@@ -23,6 +23,8 @@ def light_table(lights: list[Light]) -> np.ndarray:
     if not n:
         return out
     d = np.array([l.direction for l in lights], dtype=np.float64).reshape(n, 3)
+    big = np.max(np.abs(d), axis=1, keepdims=True)
+    d = d / np.where(big > 0, big, 1.0)  # scaled first: the norm of [1e300, -1e300, 0] would overflow to inf
     norm = np.linalg.norm(d, axis=1, keepdims=True)
     outer = np.array([l.outer_angle_deg for l in lights], dtype=np.float64)
     inner = np.minimum(np.array([l.inner_angle_deg for l in lights], dtype=np.float64), outer)

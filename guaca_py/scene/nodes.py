@@ -12,6 +12,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from pyglm import glm
 
+from ..errors import ConfigError
+
+
+class ValueConfigError(ConfigError, ValueError):
+    """A value of the wrong shape or range given to a scene part (still a ValueError, as numpy's own checks raise)."""
+
+
 _AXES = (glm.dvec3(1.0, 0.0, 0.0), glm.dvec3(0.0, 1.0, 0.0), glm.dvec3(0.0, 0.0, 1.0))
 
 
@@ -21,9 +28,9 @@ def _checked_matrix(matrix) -> np.ndarray:
     if m.shape == (16,):
         m = m.reshape(4, 4)
     if m.shape != (4, 4):
-        raise ValueError(f"a transform matrix is 4x4, got shape {m.shape}")
+        raise ValueConfigError(f"a transform matrix is 4x4, got shape {m.shape}", key="Transform.matrix")
     if not np.all(np.isfinite(m)):
-        raise ValueError("a transform matrix must be finite (no NaN or inf)")
+        raise ValueConfigError("a transform matrix must be finite (no NaN or inf)", key="Transform.matrix")
     return m
 
 
@@ -44,6 +51,9 @@ class Transform:
         *,
         matrix=None,
     ):
+        for key, v in (("translation", translation), ("rotation_deg", rotation_deg), ("scale", scale)):
+            if _vector3(v) is None:
+                raise ValueConfigError(f"must be 3 finite numbers, got {v!r}", key=f"Transform.{key}")
         self.translation, self.rotation_deg, self.scale = translation, rotation_deg, scale
         self._matrix = None if matrix is None else _checked_matrix(matrix)
         self._glm = None if self._matrix is None else glm.dmat4(self._matrix)
@@ -105,6 +115,42 @@ class MeshData:
     indices: np.ndarray  # (M, 3) uint32
     name: str = "mesh"
 
+    def __post_init__(self):
+        self.check()
+
+    def check(self) -> None:
+        """Refuse arrays of the wrong shape, non-finite positions and indices outside the vertex list (ConfigError)."""
+
+        def fail(reason: str) -> ConfigError:
+            return ConfigError(
+                f"mesh '{self.name}': {reason}",
+                hint="MeshData takes (N, 3) positions and normals, (N, 2) texcoords and (M, 3) integer indices below N",
+            )
+
+        arrays = {}
+        for field_name, cols in (("positions", 3), ("normals", 3), ("texcoords", 2), ("indices", 3)):
+            a = getattr(self, field_name)
+            shape = getattr(a, "shape", None)
+            if field_name == "indices" and shape is not None and len(shape) == 1 and shape[0] % 3 == 0:
+                pass  # a flat index list, three a triangle, draws the same
+            elif shape is None or len(shape) != 2 or shape[1] != cols:
+                raise fail(
+                    f"{field_name} must have shape (n, {cols}), got {shape if shape is not None else type(a).__name__}"
+                )
+            arrays[field_name] = a
+        n = arrays["positions"].shape[0]
+        for field_name in ("normals", "texcoords"):
+            if arrays[field_name].shape[0] != n:
+                raise fail(f"{field_name} has {arrays[field_name].shape[0]} rows for {n} positions")
+        idx = arrays["indices"]
+        if idx.size and not np.issubdtype(idx.dtype, np.integer):
+            raise fail(f"indices must be integers, got {idx.dtype}")
+        if idx.size and (int(idx.min()) < 0 or int(idx.max()) >= n):
+            raise fail(f"indices must lie in [0, {n}), found {int(idx.min())}..{int(idx.max())}")
+        for field_name in ("positions", "normals", "texcoords"):
+            if not np.all(np.isfinite(arrays[field_name])):
+                raise fail(f"{field_name} must be finite (no NaN or inf)")
+
     @property
     def triangle_count(self) -> int:
         """Number of triangles."""
@@ -158,13 +204,50 @@ class Camera:
     near: float = 0.1
     far: float = 100.0
 
+    def check(self) -> None:
+        """Refuse a camera no frame can be made from (ConfigError naming the field and what to do)."""
+
+        def fail(key: str, reason: str, hint: str) -> ConfigError:
+            return ConfigError(reason, key=f"camera.{key}", hint=hint)
+
+        vecs = {}
+        for key in ("position", "target", "up"):
+            v = _vector3(getattr(self, key))
+            if v is None:
+                raise fail(key, f"must be 3 finite numbers, got {getattr(self, key)!r}", "e.g. (0, 1, 5)")
+            vecs[key] = v
+        fov = _number(self.fov_y)
+        if fov is None or not 0.0 < fov < 180.0:
+            raise fail("fov_y", f"must be a number of degrees in (0, 180), got {self.fov_y!r}", "e.g. 60")
+        near, far = _number(self.near), _number(self.far)
+        if near is None or near <= 0.0:
+            raise fail("near", f"must be a finite number > 0, got {self.near!r}", "e.g. 0.1")
+        if far is None or far <= near:
+            raise fail(
+                "far", f"must be a finite number greater than near ({self.near!r}), got {self.far!r}", "e.g. 100"
+            )
+        view = _scaled_unit(vecs["target"] - vecs["position"])
+        if view is None:
+            raise fail("target", "must differ from the camera position", "look at a point away from the camera")
+        up = _scaled_unit(vecs["up"])
+        if up is None or np.linalg.norm(np.cross(view, up)) < 1e-6:
+            raise fail(
+                "up",
+                f"{self.up!r} is zero or parallel to the view direction",
+                "e.g. (0, 1, 0), or (0, 0, 1) looking down",
+            )
+
     def view_matrix(self) -> np.ndarray:
         """World-to-view 4x4 float64 matrix (camera looks down -Z)."""
-        eye, target, up = (glm.dvec3(*v) for v in (self.position, self.target, self.up))
+        self.check()
+        # up only gives a direction: scaled to unit length first, so 1e300 does not overflow the cross products
+        up = _scaled_unit(_vector3(self.up))
+        eye, target, up = (glm.dvec3(*v) for v in (self.position, self.target, up))
         return np.array(glm.lookAtRH(eye, target, up))
 
     def projection_matrix(self, aspect: float) -> np.ndarray:
         """OpenGL perspective 4x4 matrix (clip z in [-w, w]) as float64; its values are float32, what GL receives."""
+        self.check()
         # PyGLM builds projections in single precision only; the GPU reads them so anyway
         m = glm.perspectiveRH_NO(math.radians(self.fov_y), float(aspect), float(self.near), float(self.far))
         return np.array(m, dtype=np.float64)
@@ -174,6 +257,9 @@ LIGHT_TYPES = ("point", "spot", "directional", "ambient")
 #: farthest a scene's coordinates may reach from the origin: float32 positions step by 1 at 1.7e7,
 #: and llvmpipe's clipper drops triangles past ~1e8 (the loader checks scales, the draw list extents)
 MAX_WORLD = 1.0e7
+#: largest colour component times intensity of a light, and largest background component: the
+#: shading sums and squares these in float32 (max 3.4e38), so far larger values overflow to black
+MAX_RADIANCE = 1.0e6
 
 
 @dataclass
@@ -195,6 +281,70 @@ class Light:
     radius: float = 10.0
     inner_angle_deg: float = 20.0
     outer_angle_deg: float = 30.0
+
+    def __post_init__(self):
+        self.check()
+
+    def check(self, where: str = "light") -> None:
+        """Refuse NaN, infinite or overflowing values and a direction of length zero (ConfigError naming `where`).
+
+        Colour times intensity is bounded by MAX_RADIANCE: beyond it the shading's float32
+        arithmetic overflows and lit surfaces turn black.
+        """
+
+        def fail(key: str, reason: str, hint: str) -> ConfigError:
+            return ConfigError(reason, key=f"{where}.{key}", hint=hint)
+
+        if self.type not in LIGHT_TYPES:
+            raise fail("type", f"unknown light type {self.type!r}", f"one of {', '.join(LIGHT_TYPES)}")
+        intensity = _number(self.intensity)
+        if intensity is None:
+            raise fail("intensity", f"must be a finite number, got {self.intensity!r}", "e.g. 1.0")
+        color = _vector3(self.color)
+        if color is None:
+            raise fail("color", f"must be 3 finite numbers, got {self.color!r}", "linear RGB, e.g. (1, 1, 1)")
+        if float(np.max(np.abs(color))) * abs(intensity) > MAX_RADIANCE:
+            raise fail(
+                "intensity",
+                f"color {tuple(color.tolist())} times intensity {intensity:g} exceeds {MAX_RADIANCE:g}",
+                "scale the light down (the shading's float32 arithmetic overflows beyond this)",
+            )
+        if _vector3(self.position) is None:
+            raise fail("position", f"must be 3 finite numbers, got {self.position!r}", "e.g. (0, 3, 0)")
+        direction = _vector3(self.direction)
+        if self.type in ("spot", "directional") and (direction is None or _scaled_unit(direction) is None):
+            raise fail(
+                "direction", f"must be 3 finite numbers, not all zero, got {self.direction!r}", "e.g. (0, -1, 0)"
+            )
+        for key in ("radius", "inner_angle_deg", "outer_angle_deg"):
+            if _number(getattr(self, key)) is None:
+                raise fail(key, f"must be a finite number, got {getattr(self, key)!r}", "see the Light docstring")
+
+
+def _number(x) -> float | None:
+    """`x` as a finite float, or None (booleans, strings and arrays are not numbers here)."""
+    if isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)):
+        return None
+    v = float(x)
+    return v if math.isfinite(v) else None
+
+
+def _vector3(v) -> np.ndarray | None:
+    """`v` as 3 finite float64 numbers, or None."""
+    try:
+        a = np.asarray(v, dtype=np.float64)
+    except (TypeError, ValueError):
+        return None
+    return a if a.shape == (3,) and np.all(np.isfinite(a)) else None
+
+
+def _scaled_unit(v: np.ndarray) -> np.ndarray | None:
+    """`v` at unit length, divided by its largest component first (no overflow at 1e300); None when zero."""
+    big = float(np.max(np.abs(v)))
+    if big == 0.0 or not math.isfinite(big):
+        return None
+    v = v / big
+    return v / np.linalg.norm(v)
 
 
 def scene_bounds(nodes: list[Node]) -> tuple[np.ndarray, np.ndarray]:
