@@ -80,6 +80,7 @@ from ..numeric import Range, number_hint
 from ..yaml_source import compose, nesting_error, read_text
 from .graph import LIGHT_TYPES, MAX_WORLD, Camera, Light, MaterialInstance, MeshData, Node, Scene, Transform
 from .mesh_io import load_mesh_file
+from .nodes import _scaled_unit
 from .primitives import PRIMITIVE_KINDS, make_primitive
 
 TOP_KEYS = ("camera", "background", "lights", "nodes")
@@ -204,10 +205,10 @@ class _Reader:
     def direction(self, at: _At) -> tuple[float, float, float]:
         """A non-zero 3-vector, normalised."""
         v = np.asarray(self.vector(at), dtype=np.float64)
-        length = float(np.linalg.norm(v))
-        if length < 1e-9:
+        unit = _scaled_unit(v) if float(np.max(np.abs(v))) >= 1e-9 else None  # scaled first: 1e300 does not overflow
+        if unit is None:
             raise self.error(at, "direction must not be zero", "e.g. [0, -1, 0] points straight down")
-        return tuple(float(x) for x in v / length)
+        return tuple(float(x) for x in unit)
 
     def string(self, at: _At) -> str:
         """A scalar's text (names may look like numbers; keep what was written)."""

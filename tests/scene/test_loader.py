@@ -564,3 +564,16 @@ def test_scene_file_not_utf8_names_the_byte_and_its_line(tmp_path):
         load_scene(p)
     assert (err.value.file, err.value.line) == (p, 2)
     assert "not UTF-8 text (byte 0xe9 on line 2)" in err.value.reason and err.value.hint == "save the file as UTF-8"
+
+
+def test_huge_light_direction_in_yaml_normalises_without_overflow(tmp_path):
+    # scaled by its largest component first: 1e300 squared would overflow to infinity and normalise to zero
+    from guaca_py.scene.loader import load_scene_text
+
+    text = (
+        "camera: {position: [0, 0, 4], target: [0, 0, 0]}\n"
+        "lights: [{type: directional, direction: [1.0e+300, -1.0e+300, 0]}]\n"
+        "nodes: []\n"
+    )
+    d = load_scene_text(text, "s.yaml", tmp_path).lights[0].direction
+    assert d == pytest.approx((2**-0.5, -(2**-0.5), 0.0))
