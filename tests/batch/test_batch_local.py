@@ -31,8 +31,10 @@ def test_turntable_of_48_frames_on_2_workers_equals_the_plain_loop(tmp_path, cap
     lines = [json.loads(t) for t in (out / "manifest.jsonl").read_text().splitlines()]
     assert sorted(line["frame"] for line in lines) == list(range(48))  # one line per frame
     assert {line["variant"] for line in lines} == {"exact"}
-    # both workers take chunks, unless one started so late (a loaded machine) that the other took all
-    assert 1 <= len({line["worker"] for line in lines}) <= 2
+    # every frame names a worker process of the job (host:pid, never the driver's pid), at most the two
+    # asked for; both take chunks unless one started so late (a loaded machine) that the other took all
+    workers = {line["worker"] for line in lines}
+    assert workers and len(workers) <= 2 and str(os.getpid()) not in {w.rsplit(":", 1)[1] for w in workers}
     for line in lines:
         assert set(line["passes_ms"]) >= {"geometry", "light_culling", "composite"}
         assert line["fragments_stored"] >= 0 and line["file"] == f"exact/{line['frame']:05d}.png"
