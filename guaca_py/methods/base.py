@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 from ..errors import UnsupportedMethodError
 from ..pipeline.settings import NUMBER, Setting, unit_interval
-from ..raster.choice import RASTER_ORDER_SETTING, RASTER_SETTING
+from ..raster.choice import RASTER_ORDER_SETTING, RASTER_SETTING, auto_order
 
 if TYPE_CHECKING:
     from ..context import Capabilities
@@ -112,8 +112,8 @@ class TransparencyMethod:
     # by a method whose fragment-shader path would be slow with the choices it made), or None
     auto_compute_reason: str | None = None
 
-    def raster_order(self) -> str:
-        """The compute rasterizer's triangle order: the `raster_order` setting, or for `auto` the measured rule below."""
+    def raster_order(self, pixels: int = 0) -> str:
+        """The compute rasterizer's triangle order for a frame of `pixels`: the `raster_order` setting, or for `auto` the measured rule."""
         order = self.settings.get("raster_order", "auto")
         if order != "auto":
             return order
@@ -124,8 +124,9 @@ class TransparencyMethod:
         # Without it, tile order keeps each pixel's nodes and its neighbours' in one short run of
         # the pool, where insertion walks and the composite read them: hairball_v2 presort_lf 161 ->
         # 28.4 ms, post_sort 330 (mesh order) -> 29.3, post_merge16 787 -> 93; the dragons lose
-        # ~1 ms (post_sort 3.4 -> 4.4), Sponza is within 0.5 ms either way.
-        return "depth" if self.early_termination else "tile"
+        # ~1 ms (post_sort 3.4 -> 4.4), Sponza is within 0.5 ms either way. Past 2048² that locality
+        # outweighs early termination's culling too (raster/choice.py, LARGE_FRAME_PIXELS).
+        return auto_order(self.early_termination, pixels)
 
     def __init__(self, spec: MethodSpec, settings: dict, caps: Capabilities):
         self.spec = spec

@@ -45,11 +45,27 @@ def auto_rule() -> str:
     )
 
 
+# Frames of more pixels than this take their triangles in tile order even with early termination.
+# On the H100 (presort_lf_et, docs/decisions.md, 2026-11-27 "tile order for large frames"), depth
+# order sweeps the whole frame at once and its list walks and composite read a pool larger than the
+# GPU's caches and translation reach: at 4096² tile order took hairball_v1 from 482 to 41 ms and the
+# dragons from 35.4 to 12.5 ms (composite 143 -> 5.7 and 10.5 -> 1.2 ms), while at 1024² depth order
+# stays ahead (hairball_v1 5.2 against 6.4 ms: early termination culls more) and 2048² is near even.
+LARGE_FRAME_PIXELS = 2048 * 2048
+
+
+def auto_order(early_termination: bool, pixels: int) -> str:
+    """The triangle order `raster_order: auto` takes for a method and a frame of `pixels` pixels."""
+    if early_termination and pixels <= LARGE_FRAME_PIXELS:
+        return "depth"
+    return "tile"
+
+
 def order_rule() -> str:
     """The `raster_order: auto` rule in words (printed by `guaca info`)."""
     return (
-        "depth (front to back) for methods with early termination, tile (screen tiles, back to front "
-        "within each) for the others"
+        f"depth (front to back) for methods with early termination in frames of at most "
+        f"{LARGE_FRAME_PIXELS:,} pixels (2048²), tile (screen tiles, by depth within each) otherwise"
     )
 
 

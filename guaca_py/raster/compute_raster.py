@@ -38,6 +38,7 @@ from ..limits import require_bytes
 from ..pipeline.device import Device
 from ..shaders import set_uniform, set_uniforms
 from ..shaders.slots import Buffer, Texture
+from .choice import LARGE_FRAME_PIXELS
 from .material_program import apply_material, material_program
 from .material_support import compute_material
 
@@ -84,6 +85,12 @@ MEDIUM_AREA = 1024  # larger boxes up to this many pixels by one 64-thread workg
 VERTEX_RECORD_BYTES = 48  # clip position, world position + u, normal + v
 MAX_REGROW = 2  # re-renders one frame may take to grow the queue or the job list
 BUCKETS = 16384  # buckets of the triangle order (a multiple of SCAN_LANES: order_scan.comp.j2)
+# Tile order in frames past raster/choice.py's LARGE_FRAME_PIXELS: 256 depth buckets in each of the
+# 16 x 16 tiles instead of 64, so early termination still meets a tile's triangles nearly front to
+# back (H100, 4096², tile order: the dragons 15.1 -> 12.5 ms). Smaller frames keep BUCKETS: the
+# one-workgroup prefix sum of 65536 buckets costs ~0.08 ms more per draw (the dragons' 7 draws at
+# 1024²: order stage 0.6 -> 1.2 ms).
+LARGE_TILE_BUCKETS = 65536
 SCAN_LANES = 1024  # invocations of the one-workgroup prefix sum over the buckets (the GL minimum limit)
 ORDER_TILE_BITS = 4  # tile order: 16 x 16 screen tiles of 64 depth buckets each
 _GROUP = 64  # threads per workgroup of the vertex and setup stages
@@ -215,7 +222,7 @@ class ComputeRasterizer:
 
     def _kernel(self, template: str, **variables):
         """A material-independent kernel of the rasterizer, compiled once per template, variables and tuning."""
-        return self.device.programs.compute(template, **self._raster_vars(), **variables)
+        return self.device.programs.compute(template, **{**self._raster_vars(), **variables})
 
     # ------------------------------------------------------------------ storage
     def _begin(self, frame, draws) -> None:
@@ -233,7 +240,7 @@ class ComputeRasterizer:
         self._require_vertices(vertices)
         if self._state is None:
             self._state = CounterBlock(ctx, STATE_WORDS)
-            self._buckets = ctx.buffer(reserve=BUCKETS * 4)
+            self._buckets = ctx.buffer(reserve=max(BUCKETS, LARGE_TILE_BUCKETS) * 4)
         if vertices > self.vertex_capacity:
             self._release(self._verts)
             self.vertex_capacity = vertices
@@ -283,7 +290,7 @@ class ComputeRasterizer:
 
     def _order_constants(self, frame, order_kernels, span) -> None:
         """The order kernels' uniforms that hold for every draw of a call."""
-        order = frame.method.raster_order()
+        order = frame.method.raster_order(frame.width * frame.height)
         values = (
             ("gua_back_to_front", not self._front_to_back(frame.method)),
             ("gua_mesh_order", order == "mesh"),
@@ -294,7 +301,13 @@ class ComputeRasterizer:
         for kernel in order_kernels[:3]:
             set_uniforms(kernel, values)
 
-    def _order_pass(self, draw, order_kernels, depth_range: tuple[float, float]) -> None:
+    def _buckets_of(self, frame) -> int:
+        """Buckets of the frame's triangle order: LARGE_TILE_BUCKETS for tile order in large frames."""
+        pixels = frame.width * frame.height
+        large = pixels > LARGE_FRAME_PIXELS and frame.method.raster_order(pixels) == "tile"
+        return LARGE_TILE_BUCKETS if large else BUCKETS
+
+    def _order_pass(self, draw, order_kernels, depth_range: tuple[float, float], buckets: int) -> None:
         """Bucket-sort the draw's triangles in the frustum by view depth, index or screen tile (order.comp.j2)."""
         ctx, (clear, count, scatter, scan) = self.ctx, order_kernels
         triangles = draw.mesh.triangle_count
@@ -306,7 +319,7 @@ class ComputeRasterizer:
         for kernel in (count, scatter):
             set_uniform(kernel, "gua_tri_count", triangles)
         set_uniform(count, "gua_depth_range", depth_range)
-        for kernel, items in ((clear, BUCKETS), (count, triangles)):  # clear the bucket counts, count
+        for kernel, items in ((clear, buckets), (count, triangles)):  # clear the bucket counts, count
             kernel.run(*_grid(items))
             ctx.memory_barrier()
         scan.run(1)  # prefix sum, and the setup stage's dispatch
@@ -334,9 +347,10 @@ class ComputeRasterizer:
         # the queue bookkeeping after the setup (1) and bin (2) stages; the order stage's bucket clear
         # (0), count (1) and scatter (3), then its prefix sum
         args = {m: self._kernel("raster/args.comp.j2", args_mode=m) for m in (1, 2)}
+        buckets = self._buckets_of(frame)
         order_kernels = (
-            *(self._kernel("raster/order.comp.j2", order_mode=m) for m in (0, 1, 3)),
-            self._kernel("raster/order_scan.comp.j2"),
+            *(self._kernel("raster/order.comp.j2", order_mode=m, raster_buckets=buckets) for m in (0, 1, 3)),
+            self._kernel("raster/order_scan.comp.j2", raster_buckets=buckets),
         )
         self._order_constants(frame, order_kernels, samples["gua_sample_span"])
         set_uniform(args[1], "gua_capacity", self.large_capacity)
@@ -402,7 +416,7 @@ class ComputeRasterizer:
             vert.run(*_grid(len(d.mesh.positions)))
             ctx.memory_barrier()
             self._mark("vertex")
-            self._order_pass(d, order_kernels, ranges[d.index])
+            self._order_pass(d, order_kernels, ranges[d.index], buckets)
             self._mark("order")
             for prog in (setup, binner, fine):
                 set_uniform(prog, "gua_draw_index", d.index)
@@ -438,7 +452,7 @@ class ComputeRasterizer:
         if frame.late_counters:
             self._state.stage()
         frame.stats.setdefault("raster", {})["compute"] = {
-            "order": frame.method.raster_order(),
+            "order": frame.method.raster_order(frame.width * frame.height),
             "triangles": self._triangles,
             "large_triangles": c["large_total"],
             "visible_triangles": c["visible_total"],
@@ -486,7 +500,7 @@ class ComputeRasterizer:
         """Bytes of the rasterizer's buffers, allocated and used by the busiest draw."""
         return {
             "raster_vertices": self.vertex_capacity * VERTEX_RECORD_BYTES,
-            "raster_order": 2 * self.order_capacity * 4 + BUCKETS * 4,
+            "raster_order": 2 * self.order_capacity * 4 + max(BUCKETS, LARGE_TILE_BUCKETS) * 4,
             "raster_large_queue": self.large_capacity * 4,
             "raster_large_queue_used": min(large_peak, self.large_capacity) * 4,
             "raster_tile_jobs": self.job_capacity * 8,

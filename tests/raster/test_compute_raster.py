@@ -18,6 +18,7 @@ from exact_frames import ReferenceCache
 from guaca_py.antialiasing import with_samples
 from guaca_py.errors import ConfigError, UnsupportedMethodError
 from guaca_py.pipeline.config import load_pipeline
+from guaca_py.raster import choice, compute_raster
 from guaca_py.reference import compare, edge_mask, interpenetrating_scene, layered_quads_scene, triangle_mesh, unlit
 from guaca_py.scene.graph import Light, MaterialInstance, MeshData, Node, Transform
 
@@ -661,7 +662,10 @@ def test_auto_raster_order_is_depth_with_early_termination_else_tile(renderer_fa
     # the measured rule (docs/decisions.md, 2026-11-23 "the triangle order"): early termination culls
     # most in depth order, the others walk and composite fastest over tile-ordered pools
     r = renderer_factory("exact", method=method)
-    assert r.method.raster_order() == expected
+    assert r.method.raster_order(1024 * 1024) == expected
+    # past 2048² tile order's locality outweighs early termination's culling (raster/choice.py)
+    assert r.method.raster_order(2048 * 2048) == expected
+    assert r.method.raster_order(2048 * 2049) == "tile"
     r2 = renderer_factory("exact", method=method, method_overrides={"raster_order": "mesh"})
     assert r2.method.raster_order() == "mesh"
 
@@ -675,8 +679,11 @@ def _morton16(ndc: np.ndarray) -> np.ndarray:
     return key
 
 
-@pytest.mark.parametrize("method", ["presort_lf", "presort_lf_et", "post_sort"])
-def test_tile_order_runs_screen_tiles_one_after_another(renderer_factory, method):
+@pytest.mark.parametrize(
+    ("method", "large"),
+    [("presort_lf", False), ("presort_lf_et", False), ("post_sort", False), ("presort_lf_et", True)],
+)
+def test_tile_order_runs_screen_tiles_one_after_another(renderer_factory, monkeypatch, method, large):
     # small quads in a 3 x 3 grid of screen places, three depths each, listed depth-major: the tile
     # order takes them place by place (Morton order of their tiles), by the method's depth
     # direction within a place (front to back with early termination, back to front without)
@@ -696,8 +703,14 @@ def test_tile_order_runs_screen_tiles_one_after_another(renderer_factory, method
     idx = np.concatenate([np.uint32([[0, 1, 2], [0, 2, 3]]) + 4 * i for i in range(len(nodes_pos))]).astype(np.uint32)
     mesh = MeshData(pos, np.tile(np.float32([0, 0, 1]), (len(pos), 1)), np.zeros((len(pos), 2), np.float32), idx)
     scene = simple_scene([Node("grid", mesh=mesh, material=unlit((0.7, 0.3, 0.2), 0.5))])
-    r = renderer_factory("exact", method=method, method_overrides={"raster": "compute", "raster_order": "tile"})
+    order_setting = "tile"
+    if large:  # a "large" frame (raster/choice.py's bound lowered to this test's): auto takes tile order
+        monkeypatch.setattr(choice, "LARGE_FRAME_PIXELS", 32 * 32)
+        monkeypatch.setattr(compute_raster, "LARGE_FRAME_PIXELS", 32 * 32)
+        order_setting = "auto"
+    r = renderer_factory("exact", method=method, method_overrides={"raster": "compute", "raster_order": order_setting})
     frame = r.render(scene, 64, 64)
+    assert frame.stats["raster"]["compute"]["order"] == "tile"
     n = 2 * len(nodes_pos)
     assert frame.stats["raster"]["compute"]["visible_triangles"] == n
     order = np.frombuffer(r.raster.compute._order.read(), dtype=np.uint32)[:n]
