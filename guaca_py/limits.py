@@ -3,9 +3,13 @@
 The rule: a buffer that shaders index holds at most `DeviceLimits.max_buffer_bytes`, which is the
 smallest of
 
-* 2 GiB - 1 (`INDEX_LIMIT_BYTES`): shaders address buffers with 32-bit offsets; llvmpipe computes
-  byte offsets as signed 32-bit ints (measured: a 2.00 GB node pool renders, 2.18 GB segfaults
-  inside the shader);
+* the range a shader can index (`index_limit_bytes`): 2 GiB - 1 (`INDEX_LIMIT_BYTES`) where byte
+  offsets are signed 32-bit ints, as llvmpipe computes them (measured: a 2.00 GB node pool renders,
+  2.18 GB segfaults inside the shader); 3 GiB on NVIDIA (`NVIDIA_INDEX_LIMIT_BYTES`), which reports
+  a 2 GiB - 1 GL_MAX_SHADER_STORAGE_BLOCK_SIZE but indexes a bound 3 GiB buffer to its end
+  (measured on the H100: stores at its last 1 MiB read back; a 5 GiB buffer's did not). Every
+  method indexes its buffers by 32-bit word or record (the A-buffer's node n at word 8n), so 3 GiB
+  stays below 2^31 words and a pool of 40-byte nodes grows from 53M to 80M nodes;
 * half of the memory the device reports free at context creation (`GL_NVX_gpu_memory_info` on
   NVIDIA; `MemAvailable` of the host on software rasterizers, whose buffers live in host memory);
 * `GUACA_MAX_BUFFER_MB` from the environment, where set (to test the degradation path, or to
@@ -30,6 +34,7 @@ from .errors import LimitError
 from .gl_state import raw_gl
 
 INDEX_LIMIT_BYTES = 2**31 - 1
+NVIDIA_INDEX_LIMIT_BYTES = 3 * 2**30
 MEMORY_SHARE = 0.5  # of the memory reported free: the rest stays with the driver and the host application
 ENV_CAP = env.MAX_BUFFER_MB
 _GPU_MEMORY_INFO_CURRENT_AVAILABLE_VIDMEM_NVX = 0x9049  # KiB
@@ -94,6 +99,13 @@ def env_cap_bytes() -> int | None:
     return max(4096, int(mb * _MIB))
 
 
+def index_limit_bytes(vendor: str, software: bool) -> tuple[int, str]:
+    """The largest buffer a shader indexes on a device of GL vendor `vendor`, and why (the rule above)."""
+    if not software and "nvidia" in vendor.lower():
+        return NVIDIA_INDEX_LIMIT_BYTES, "the range NVIDIA's shaders index (measured: 3 GiB)"
+    return INDEX_LIMIT_BYTES, "the 32-bit offsets shaders index buffers with"
+
+
 def query_limits(ctx, software: bool) -> DeviceLimits:
     """Read the device's limits (once, at context creation) and apply the storage rule."""
     info = ctx.info
@@ -102,7 +114,7 @@ def query_limits(ctx, software: bool) -> DeviceLimits:
     source = "half the free video memory"
     if available is None and software:
         available, source = _host_available_bytes(), "half the host's available memory"
-    candidates = [(INDEX_LIMIT_BYTES, "the 32-bit offsets shaders index buffers with")]
+    candidates = [index_limit_bytes(str(info.get("GL_VENDOR", "")), software)]
     if available:
         candidates.append((int(available * MEMORY_SHARE), source))
     env = env_cap_bytes()

@@ -404,15 +404,26 @@ def test_material_states_opaque(tmp_path):
 
 
 # ---------------------------------------------------------------------------- device limits
+def test_index_limit_is_two_gib_unless_measured_larger():
+    from guaca_py.limits import INDEX_LIMIT_BYTES, NVIDIA_INDEX_LIMIT_BYTES, index_limit_bytes
+
+    # llvmpipe's signed 32-bit byte offsets; NVIDIA indexes 3 GiB (word indices stay below 2^31)
+    assert index_limit_bytes("Mesa", True)[0] == INDEX_LIMIT_BYTES == 2**31 - 1
+    assert index_limit_bytes("NVIDIA Corporation", False)[0] == NVIDIA_INDEX_LIMIT_BYTES
+    assert NVIDIA_INDEX_LIMIT_BYTES // 4 < 2**31
+    assert index_limit_bytes("NVIDIA Corporation", True)[0] == INDEX_LIMIT_BYTES  # a software path on it
+    assert index_limit_bytes("AMD", False)[0] == INDEX_LIMIT_BYTES  # not measured: the safe bound
+
+
 def test_limits_follow_one_rule(gl_context):
     from guaca_py.context import detect_capabilities
-    from guaca_py.limits import INDEX_LIMIT_BYTES
+    from guaca_py.limits import index_limit_bytes
     from guaca_py.methods import method_class
     from guaca_py.renderer import method_settings
 
     caps = detect_capabilities(gl_context)
     lim = caps.limits
-    assert 0 < lim.max_buffer_bytes <= INDEX_LIMIT_BYTES
+    assert 0 < lim.max_buffer_bytes <= index_limit_bytes(gl_context.info["GL_VENDOR"], caps.software)[0]
     if lim.available_bytes:
         assert lim.max_buffer_bytes <= lim.available_bytes // 2
     m = method_class("presort_lf")(method_settings("presort_lf", {}), caps)
