@@ -34,6 +34,7 @@ from .present import Presenter, host_target
 from .raster.router import RasterRouter
 from .scene.files import as_scene
 from .scene.graph import Camera, Scene
+from .scene.views import check_cameras
 from .shaders import ShaderLibrary
 
 
@@ -321,8 +322,9 @@ class Renderer:
         """Render `scene` once per camera of `cameras` (its own camera unused): one FrameResult per view, in order.
 
         The views share one draw list (built once per call) and the renderer's storage: the
-        transparent pool holds the largest view's fragments and is not made again between views,
-        so a stereo pair costs what one frame of both views' pixels costs. Each view has its own
+        transparent pool holds the largest view's fragments and is not made again between views:
+        a view costs its own geometry and fragments, nothing is uploaded, compiled or allocated
+        for it. Each view has its own
         image and statistics (`stats["view"]`: its index and the number of views). `read_back`
         and `stats` are render()'s; with `read_back=False` nothing waits for the GPU between
         views, every view's `FrameResult.texture` stays valid until the renderer's next call, and
@@ -330,7 +332,7 @@ class Renderer:
         `guaca_py.scene.views` makes camera sets: `stereo_pair`, `camera_row`, `cube_map`.
         """
         scene, w, h = self._scene_and_size(scene, width, height)
-        cameras = _check_cameras(cameras)
+        cameras = check_cameras(cameras)
         draws = self._draw_list(scene)  # the views differ only in their camera
         kept = []
         for i, camera in enumerate(cameras):
@@ -514,27 +516,6 @@ class Renderer:
         """Free every GPU resource the renderer holds, and its context when it made its own."""
         if self._finalizer.detach() is not None:  # once: a second release() does nothing
             _release_parts(self.__dict__)
-
-
-def _check_cameras(cameras) -> list[Camera]:
-    """`cameras` as a list of Cameras a frame can be made from; otherwise an error naming `cameras[i]` and its field."""
-    if isinstance(cameras, Camera) or isinstance(cameras, (str, bytes)):
-        raise ArgumentError(
-            f"must be a sequence of Cameras, got {type(cameras).__name__}",
-            key="cameras",
-            hint="a list, e.g. stereo_pair(camera, 0.064) from guaca_py.scene",
-        )
-    try:
-        cameras = list(cameras)
-    except TypeError:
-        raise ArgumentError(f"must be a sequence of Cameras, got {type(cameras).__name__}", key="cameras") from None
-    if not cameras:
-        raise ConfigError("must hold at least one Camera, got none", key="cameras", hint="render() draws one view")
-    for i, camera in enumerate(cameras):
-        if not isinstance(camera, Camera):
-            raise ArgumentError(f"must be a Camera, got {type(camera).__name__}", key=f"cameras[{i}]")
-        camera.check(f"cameras[{i}]")
-    return cameras
 
 
 def _check_viewport(viewport) -> None:

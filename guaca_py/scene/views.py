@@ -1,7 +1,8 @@
 """Sets of cameras for several views of one scene: a stereo pair, a row of views, the faces of a cube map.
 
-Each is a plain list of Cameras, what `Renderer.render_views` takes: it draws them with one draw
-list and one transparent pool, an image and statistics per view.
+Each is a plain list of Cameras, what `Renderer.render_views` takes (and checks with
+`check_cameras`): it draws them with one draw list and one transparent pool, an image and
+statistics per view.
 """
 
 from __future__ import annotations
@@ -40,6 +41,27 @@ def _positive(value, key: str) -> float:
     if v is None or v <= 0.0:
         raise ValueConfigError(f"must be a finite number > 0, got {value!r}", key=key, hint="in scene units")
     return v
+
+
+def check_cameras(cameras) -> list[Camera]:
+    """`cameras` as a list of Cameras a frame can be made from; otherwise an error naming `cameras[i]` and its field."""
+    if isinstance(cameras, Camera) or isinstance(cameras, (str, bytes)):
+        raise ArgumentError(
+            f"must be a sequence of Cameras, got {type(cameras).__name__}",
+            key="cameras",
+            hint="a list, e.g. stereo_pair(camera, 0.064) from guaca_py.scene",
+        )
+    try:
+        cameras = list(cameras)
+    except TypeError:
+        raise ArgumentError(f"must be a sequence of Cameras, got {type(cameras).__name__}", key="cameras") from None
+    if not cameras:
+        raise ValueConfigError("must hold at least one Camera, got none", key="cameras", hint="render() draws one view")
+    for i, camera in enumerate(cameras):
+        if not isinstance(camera, Camera):
+            raise ArgumentError(f"must be a Camera, got {type(camera).__name__}", key=f"cameras[{i}]")
+        camera.check(f"cameras[{i}]")
+    return cameras
 
 
 def camera_row(camera: Camera, count: int, spacing: float) -> list[Camera]:
