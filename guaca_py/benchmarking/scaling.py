@@ -451,7 +451,13 @@ def chart(rec: dict):
 def parser(script: str) -> argparse.ArgumentParser:
     """The arguments of `paper_table.py scaling`."""
     ap = bench_args(script, __doc__, size=1024, frames=30, scenes=True)
-    ap.description = "How cost grows with the work: frame size, a stereo pair, a field of models."
+    ap.prog, ap.description = (
+        "paper_table.py scaling",
+        "How cost grows with the work: frame size, a stereo pair, a field of models.",
+    )
+    shared = {"size": "the field part's frame width and height", "frames": "frames of each row's loop (mean)"}
+    for action in ap._actions:  # the common arguments, as this benchmark uses them
+        action.help = shared.get(action.dest, action.help)
     ap.set_defaults(scene_names=list(SCENES), warmup_s=0.5)
     ap.add_argument("--sizes", type=int, nargs="*", default=list(SIZES), help="square frame sizes of the size part")
     ap.add_argument("--methods", nargs="*", default=[FIRST_METHOD, next_exact_method()])
