@@ -17,6 +17,9 @@
 #   aa_cost        presort_lf_et at 1 and 4 samples on every real scene          ~1 min, limit 70 s
 #   methods_table  every method on the demo scene, each in its own process       ~1 min, limit 80 s
 #   accuracy       speed against error on the dragons, every method, 8x reference ~1.5 min, limit 100 s
+#   scaling        cost against frame size (512² to 4096²), a stereo pair against one frame, fields of
+#                  1 to 64 dragons (paper_table.py scaling)                     ~4 min, limit 250 s
+#                  not in the default list (it would push the suite past 570 s): PARTS=scaling
 # The test log and each part's console output go to /tmp/gpu_suite/ (and into the archive), never
 # into the tree.
 set -uo pipefail
@@ -73,6 +76,7 @@ part aa_cost 70 $py benchmarks/aa_cost.py --size "$size" --scene-names dragons s
   hairball_v1 hairball_v2 --samples 1 4
 part methods_table 80 $py benchmarks/methods_table.py --size "$size"
 part accuracy 100 $py benchmarks/accuracy_scenes.py --size "$size" --scene-names dragons
+part scaling 250 $py benchmarks/paper_table.py scaling --budget-s 225
 
 if [[ -n $copy_to ]]; then
   mkdir -p "$copy_to"

@@ -3,6 +3,7 @@
 Usage: python benchmarks/paper_table.py [--out DIR] [--scenes .scenes] [--scene-names NAME ...] [--size 1024]
                                         [--frames 8] [--warmup-s 1.5] [--methods ID ...]
                                         [--raster hardware compute] [--skip-stacks] [--loop-frames 24] [--replot]
+       python benchmarks/paper_table.py scaling [--sizes 512 ... 4096] [--field 1 4 16 64] [--budget-s 225] ...
 
 For every scene of the paper's Table 1 found in --scenes (dragons.yaml, sponza_dabrovic_v1/v2.yaml,
 hairball_v1/v2.yaml: ../shared/scenes, the hairball written by its make_hairball.py) and every method
@@ -13,10 +14,17 @@ frame's wall time in an application loop without read-back, fragments stored and
 SM clock, and the ratio to the paper's PreSortLF* figure (GTX 980). Then stacks of full-screen quads
 (1, 2, 4, 8, 64 layers, unlit, alpha 0.5): geometry time per stored fragment; and the empty frame.
 Writes benchmarks/results/<device>/paper_table/paper_table.{json,md,png}.
+
+`scaling` (guaca_py/benchmarking/scaling.py, `scaling --help`) measures how cost grows with the
+work on the dragons and hairball_v1: frame sizes 512² to 4096², a stereo pair of 2048² views
+(Renderer.render_views) against one 2048x4096 frame, fields of 1 to 64 dragons; presort_lf_et and
+the next fastest exact method, `raster: auto` beside `hardware`. Writes
+benchmarks/results/<device>/scaling/scaling.{json,md,png} and the fields' field_<n>.yaml.
 """
 
 from __future__ import annotations
 
+import sys
 import time
 from pathlib import Path
 
@@ -29,6 +37,7 @@ from guaca_py.benchmarking import (
     measure_point,
     open_device,
     plain_log_axis,
+    scaling,
     scene_paths,
     time_label,
     timer_of,
@@ -353,7 +362,10 @@ def chart(out: dict):
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run Table 1 (or rebuild its table and chart with --replot)."""
+    """Run Table 1 (or rebuild its table and chart with --replot); `scaling ARGS` runs the scaling benchmark."""
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["scaling"]:
+        return scaling.main(__file__, argv[1:])
     ap = bench_args(__file__, __doc__, size=1024, frames=8, scenes=True)
     ap.add_argument("--methods", nargs="*", default=METHODS)
     ap.add_argument(

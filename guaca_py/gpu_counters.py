@@ -141,20 +141,31 @@ def _fenced_or_none(size: int) -> FencedCopies | None:
 
 
 class CounterBlock:
-    """uint32 counters that only shaders update: reset by a GPU copy, read back through a staging copy."""
+    """uint32 counters that only shaders update: reset by a GPU copy, read back through a staging copy.
+
+    Copies set aside to be read a frame late are kept per view (`view`: the frame's index among the
+    views of one render_views() call), so each view reads its own counters of the previous call.
+    """
 
     def __init__(self, ctx, names: tuple[str, ...]):
         self.ctx = ctx
         self.names = tuple(names)
-        size = 4 * len(self.names)
+        self._size = size = 4 * len(self.names)
         self.buffer = ctx.buffer(reserve=size)  # the shaders' copy: never mapped, written or read by the CPU
         self._initial = ctx.buffer(reserve=size)  # reset values, copied over `buffer` on the GPU
         self._staging = ctx.buffer(reserve=size)  # read-back copy
-        # copies read a frame later (frame loops without read-back); a plain buffer read where no
-        # raw GL entry points load or the driver maps no persistent buffer
-        self._late = _fenced_or_none(size) or _BufferCopies(ctx, size)
+        # per view: copies read a frame later (frame loops without read-back), made on the first stage()
+        self._late: dict[int, FencedCopies | _BufferCopies] = {}
         self._initial_values: tuple[int, ...] | None = None
         self._zeros = (0,) * len(self.names)
+
+    def _copies(self, view: int) -> FencedCopies | _BufferCopies:
+        """View `view`'s late copies; a plain buffer read where no raw GL entry points load or the driver maps
+        no persistent buffer."""
+        copies = self._late.get(view)
+        if copies is None:
+            copies = self._late[view] = _fenced_or_none(self._size) or _BufferCopies(self.ctx, self._size)
+        return copies
 
     def reset(self, **values: int) -> None:
         """Set every counter to 0, or to the value given by name, before the GPU uses them."""
@@ -169,31 +180,39 @@ class CounterBlock:
             self._initial_values = words
         self.ctx.copy_buffer(self.buffer, self._initial)
 
-    def read(self) -> dict[str, int]:
-        """The counters by name (waits for the GPU work that updates them); an older stage() is dropped."""
-        self._late.discard()  # a frame read now: what was set aside before it is older than that
+    def read(self, view: int | None = None) -> dict[str, int]:
+        """The counters by name (waits for the GPU work that updates them).
+
+        What stage() set aside before is older than this frame and dropped: view `view`'s where
+        given (a loop without read-back that has nothing staged for that view yet; the other
+        views' copies stay theirs), else every view's.
+        """
+        for v, copies in self._late.items():
+            if view is None or v == view:
+                copies.discard()
         self.ctx.copy_buffer(self._staging, self.buffer)
         return dict(zip(self.names, np.frombuffer(self._staging.read(), dtype=np.uint32).tolist()))
 
-    def stage(self, tag: object = None) -> None:
-        """Copy the counters aside on the GPU, to be read by staged() a frame later without waiting now."""
-        self._late.copy(self.buffer, tag)
+    def stage(self, tag: object = None, view: int = 0) -> None:
+        """Copy the counters aside on the GPU, to be read by staged(view) a frame later without waiting now."""
+        self._copies(view).copy(self.buffer, tag)
 
-    def staged(self) -> tuple[dict[str, int], object] | None:
-        """The counters of the newest stage() the GPU has finished and its tag; None if none was staged."""
-        got = self._late.newest()
+    def staged(self, view: int = 0) -> tuple[dict[str, int], object] | None:
+        """View `view`'s counters of the newest stage() the GPU has finished and its tag; None if none was staged."""
+        copies = self._late.get(view)
+        got = copies.newest() if copies is not None else None
         if got is None:
             return None
         return dict(zip(self.names, np.frombuffer(got[0], dtype=np.uint32).tolist())), got[1]
 
-    def latest(self, late: bool) -> tuple[dict[str, int], object, bool]:
+    def latest(self, late: bool, view: int = 0) -> tuple[dict[str, int], object, bool]:
         """(counters, stage() tag, whether staged): with `late` (a frame loop without read-back) the
-        counters stage() set aside a frame ago where there are some, which needs no wait; else this
-        frame's (waits for the GPU work that updates them)."""
-        staged = self.staged() if late else None
+        counters stage() set aside for view `view` a frame ago where there are some, which needs no
+        wait; else this frame's (waits for the GPU work that updates them)."""
+        staged = self.staged(view) if late else None
         if staged is not None:
             return staged[0], staged[1], True
-        return self.read(), None, False
+        return self.read(view if late else None), None, False
 
     def bind(self, binding: int) -> None:
         """Bind as the shader storage block at `binding`."""
@@ -201,8 +220,9 @@ class CounterBlock:
 
     def release(self) -> None:
         """Free the buffers."""
-        for b in (self.buffer, self._initial, self._staging, self._late):
+        for b in (self.buffer, self._initial, self._staging, *self._late.values()):
             b.release()
+        self._late.clear()
 
 
 class UploadBuffer:

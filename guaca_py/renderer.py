@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import copy
 import threading
 import time
 import weakref
+from collections.abc import Sequence
 from pathlib import Path
 
 import moderngl
@@ -12,7 +14,7 @@ import numpy as np
 
 from . import antialiasing
 from .context import create_context
-from .errors import ConfigError, GuacaError, UnsupportedMethodError
+from .errors import ArgumentError, ConfigError, GuacaError, UnsupportedMethodError
 from .gpu_resources import MeshCache, TextureCache
 from .gpu_timer import TimerQuery
 from .host_state import ContextGuard, native, native_handle, on_context
@@ -27,10 +29,12 @@ from .pipeline.drawlist import build_draw_list
 from .pipeline.frame import FrameContext, FrameResult
 from .pipeline.retry import settle
 from .pipeline.settings import resolve_settings
+from .pipeline.view_images import ViewImages
 from .present import Presenter, host_target
 from .raster.router import RasterRouter
 from .scene.files import as_scene
-from .scene.graph import Scene
+from .scene.graph import Camera, Scene
+from .scene.views import check_cameras
 from .shaders import ShaderLibrary
 
 
@@ -167,10 +171,11 @@ class Renderer:
         self.materials = MaterialRegistry(material_paths)
         self.presenter = Presenter(self.device)
         self.draw_cache = DrawCache()
-        self.frame_serial = 0  # frames rendered; a FrameResult's texture is valid while this is unchanged
-        self._queries: dict[tuple[str, int], object] = {}
+        self.frame_serial = 0  # render calls made; a FrameResult's texture is valid while this is unchanged
+        self._queries: dict[tuple[str, int, int], object] = {}  # timer queries by (pass, view, call parity)
         self._frame_index = 0
-        self._previous_timers: dict | None = None
+        self._previous_timers: dict[int, dict] = {}  # per view: the pass timers of the previous call
+        self.view_images = ViewImages(self.ctx)  # render_views(): the images of all views but the last
         self.raster = RasterRouter(self.device)  # hardware or compute rasterization of transparent draws
         self.set_method(method or self.config.transparency["method"], method_overrides)
         self.passes = assemble(self.config, self.device, self.fuse_passes)
@@ -232,15 +237,15 @@ class Renderer:
         return next(p for p in self.passes if p.name == name)
 
     # ------------------------------------------------------------------ frames
-    def _timed(self, name: str, fn):
-        """Run `fn`; returns a callable giving its time in ms, and the timer kind.
+    def _timed(self, name: str, view: int, fn):
+        """Run `fn` (pass `name` of view `view`); returns a callable giving its time in ms, and the timer kind.
 
         GPU timer queries are read only after the whole frame was submitted (reading one waits for
-        the GPU). Two query objects per pass alternate from frame to frame, so a frame loop without
-        read-back can report the previous frame's times without waiting for this one.
+        the GPU). Two query objects per pass and view alternate from call to call, so a frame loop
+        without read-back can report the previous frame's times without waiting for this one.
         """
         if self.caps.gpu_timers:
-            key = (name, self._frame_index % 2)
+            key = (name, view, self._frame_index % 2)
             q = self._queries.get(key)
             if q is None:
                 q = self._queries[key] = TimerQuery(self.ctx)
@@ -286,6 +291,67 @@ class Renderer:
         on a GPU, the per-pass times are the previous frame's (`stats["passes_of"]`), so reading
         them never waits for this frame.
         """
+        scene, w, h = self._scene_and_size(scene, width, height)
+        if viewport is not None:
+            _check_viewport(viewport)
+        host = host_target(target, w, h, viewport) if over_target else None  # refused before any work
+        frame = self._frame(scene, self._draw_list(scene), w, h, host=host, read_back=read_back, stats=stats)
+        self._end_call()
+        tex = frame.resources.output
+        if target is not None:
+            self.presenter.draw(tex, target, viewport, over=host is not None)
+        if host is not None:  # the host keeps drawing with guaca's opaque surfaces in its depth
+            self.presenter.write_host_depth(host, frame.resources["gbuffer"])
+        reader = self._reader(tex, self.frame_serial) if host is None else self._target_reader(host)
+        result = FrameResult(None, dict(frame.stats), texture=tex, reader=reader)
+        if read_back:
+            result.read()
+        return result
+
+    @on_context
+    def render_views(
+        self,
+        scene: Scene,
+        cameras: Sequence[Camera],
+        width: int | None = None,
+        height: int | None = None,
+        *,
+        read_back: bool = True,
+        stats: bool = True,
+    ) -> list[FrameResult]:
+        """Render `scene` once per camera of `cameras` (its own camera unused): one FrameResult per view, in order.
+
+        The views share one draw list (built once per call) and the renderer's storage: the
+        transparent pool holds the largest view's fragments and is not made again between views:
+        a view costs its own geometry and fragments, nothing is uploaded, compiled or allocated
+        for it. Each view has its own
+        image and statistics (`stats["view"]`: its index and the number of views). `read_back`
+        and `stats` are render()'s; with `read_back=False` nothing waits for the GPU between
+        views, every view's `FrameResult.texture` stays valid until the renderer's next call, and
+        the counters and times a view reports are the same view's of the previous call.
+        `guaca_py.scene.views` makes camera sets: `stereo_pair`, `camera_row`, `cube_map`.
+        """
+        scene, w, h = self._scene_and_size(scene, width, height)
+        cameras = check_cameras(cameras)
+        draws = self._draw_list(scene)  # the views differ only in their camera
+        kept = []
+        for i, camera in enumerate(cameras):
+            view = copy.copy(scene)  # shallow: the same nodes and lights, seen through this camera
+            view.camera = camera
+            frame = self._frame(view, draws, w, h, view=(i, len(cameras)), read_back=read_back, stats=stats)
+            tex = frame.resources.output
+            if i < len(cameras) - 1:  # the next view draws over the pipeline's image: this one keeps a copy
+                tex = self.view_images.keep(i, tex)
+            kept.append((frame.stats, tex))
+        self._end_call()
+        results = [FrameResult(None, dict(s), texture=t, reader=self._reader(t, self.frame_serial)) for s, t in kept]
+        if read_back:
+            for result in results:
+                result.read()
+        return results
+
+    def _scene_and_size(self, scene, width, height) -> tuple[Scene, int, int]:
+        """The scene (a trimesh scene or mesh converted), checked, and the frame's size within the device's limits."""
         try:
             scene = as_scene(scene)  # a trimesh scene or mesh converts (once per content); anything else is named
         except TypeError as exc:
@@ -296,18 +362,35 @@ class Renderer:
             self.config.resolution[0] if width is None else width,
             self.config.resolution[1] if height is None else height,
         )
-        if viewport is not None:
-            _check_viewport(viewport)
-        host = host_target(target, w, h, viewport) if over_target else None  # refused before any work
+        return scene, w, h
+
+    def _draw_list(self, scene: Scene) -> list:
+        """The scene's draw list (matrices and materials of unchanged nodes from the draw cache)."""
         try:
-            draws = build_draw_list(scene, self.materials, self.draw_cache)
+            return build_draw_list(scene, self.materials, self.draw_cache)
         except (AttributeError, TypeError):
             scene.check_structure()  # a part of the wrong type: named here (not checked on every frame)
             raise
+
+    def _frame(
+        self,
+        scene: Scene,
+        draws: list,
+        w: int,
+        h: int,
+        *,
+        host=None,
+        view: tuple[int, int] | None = None,
+        read_back: bool,
+        stats: bool,
+    ) -> FrameContext:
+        """Run the passes over one view of `scene` (`view`: its index and the call's number of views)."""
+        index, views = view or (0, 1)
         frame = FrameContext(
             self.device, self.method, self.raster, scene, w, h, draws, *self.camera_matrices(scene, w, h)
         )
         frame.late_counters = not read_back
+        frame.view_index, frame.view_count = index, views
         frame.resources.enter(None)
         frame.resources["draw_list"] = draws
         frame.resources["lights"] = list(scene.lights)
@@ -324,6 +407,8 @@ class Renderer:
                 "regrown": 0,
             }
         )
+        if view is not None:
+            frame.stats["view"] = {"index": index, "views": views}
         if self.method_auto is not None:
             frame.stats["method_auto"] = self.method_auto
         t0 = time.perf_counter()
@@ -338,7 +423,7 @@ class Renderer:
                 nonlocal kind
                 warned = len(frame.stats.get("warnings", []))
                 if stats:
-                    timers[p.name], kind = self._timed(p.name, lambda: p.execute(frame))
+                    timers[p.name], kind = self._timed(p.name, index, lambda: p.execute(frame))
                 else:
                     p.execute(frame)
                     timers[p.name], kind = (lambda: 0.0), "off"
@@ -352,12 +437,15 @@ class Renderer:
             settle(attempt, frame.stats)
             frame.stats["timer"] = kind
         frame.resources.enter(None)
+        if read_back or not stats:
+            self._previous_timers.clear()  # a later loop starts afresh, not from times of older frames
+        previous = self._previous_timers.pop(index, None)  # this view's, of the previous call
         if not stats:
             frame.stats["passes"] = {name: {"ms": 0.0} for name in timers}
-        elif read_back or kind != "gpu" or self._previous_timers is None:
+        elif read_back or kind != "gpu" or previous is None:
             frame.stats["passes"] = {name: {"ms": round(t(), 4)} for name, t in timers.items()}
         else:  # the previous frame's queries: finished or nearly, so reading them does not stall this one
-            frame.stats["passes"] = {name: {"ms": round(t(), 4)} for name, t in self._previous_timers.items()}
+            frame.stats["passes"] = {name: {"ms": round(t(), 4)} for name, t in previous.items()}
             frame.stats["passes_of"] = "previous frame"
         if any(p.fused_into for p in self.passes):  # in pipeline order; a fused pass's time is in its host's
             timed = frame.stats["passes"]
@@ -368,8 +456,8 @@ class Renderer:
             for p in self.passes:
                 if p.fused_into is not None:
                     frame.stats["passes"][p.fused_into]["includes"] = p.name
-        self._previous_timers = None if read_back or not stats else timers
-        self._frame_index += 1
+        if stats and not read_back:
+            self._previous_timers[index] = timers
         frame.stats.section("memory").update(self.method.memory() if frame.transparent_draws else {})
         declared = self.method.geometry_passes
         frame.stats.setdefault("geometry_passes", declared if frame.transparent_draws and declared is not None else 1)
@@ -378,19 +466,14 @@ class Renderer:
                 "a pass took longer than the 32-bit GPU timer result can hold (4.29 s); its time is clipped"
             )
         frame.stats["frame_wall_ms"] = round((time.perf_counter() - t0) * 1e3, 3)
+        return frame
+
+    def _end_call(self) -> None:
+        """After the frames of one render call: caches age by one frame, earlier FrameResults' textures expire."""
+        self._frame_index += 1
         self.device.meshes.end_frame()
         self.device.textures.end_frame()
         self.frame_serial += 1
-        tex = frame.resources.output
-        if target is not None:
-            self.presenter.draw(tex, target, viewport, over=host is not None)
-        if host is not None:  # the host keeps drawing with guaca's opaque surfaces in its depth
-            self.presenter.write_host_depth(host, frame.resources["gbuffer"])
-        reader = self._reader(tex, self.frame_serial) if host is None else self._target_reader(host)
-        result = FrameResult(None, dict(frame.stats), texture=tex, reader=reader)
-        if read_back:
-            result.read()
-        return result
 
     @staticmethod
     def camera_matrices(scene: Scene, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
@@ -433,10 +516,6 @@ class Renderer:
         """Free every GPU resource the renderer holds, and its context when it made its own."""
         if self._finalizer.detach() is not None:  # once: a second release() does nothing
             _release_parts(self.__dict__)
-
-
-class ArgumentError(ConfigError, TypeError):
-    """An argument of the wrong kind (still a TypeError, as Python's own checks raise)."""
 
 
 def _check_viewport(viewport) -> None:
@@ -488,6 +567,7 @@ def _release_parts(parts: dict) -> None:
         for p in parts["passes"]:
             p.release()
         parts["presenter"].release()
+        parts["view_images"].release()
         parts["method"].release()
         parts["raster"].release()
         for q in parts["_queries"].values():

@@ -74,14 +74,34 @@ def test_counters_set_aside_come_back_a_frame_later(gl_context, monkeypatch, fen
         pytest.skip("no raw GL entry points")
     block = CounterBlock(gl_context, ("a", "b"))
     try:
-        assert isinstance(block._late, FencedCopies) == fenced
         block.reset(a=5)
         block.stage("first")
+        assert isinstance(block._late[0], FencedCopies) == fenced
         counts, tag, late = block.latest(True)
         assert late and tag == "first" and counts == {"a": 5, "b": 0}
         block.reset(a=7)
         counts, tag, late = block.latest(True)  # nothing set aside since: this frame's, read now
         assert not late and tag is None and counts["a"] == 7
+    finally:
+        block.release()
+
+
+def test_counters_set_aside_per_view_come_back_to_that_view(gl_context):
+    # render_views() without read-back: each view reads its own counters of the previous call
+    block = CounterBlock(gl_context, ("a",))
+    try:
+        for view, value in ((0, 10), (1, 20)):
+            block.reset(a=value)
+            block.stage(f"view {view}", view=view)
+        counts, tag, late = block.latest(True, view=1)
+        assert late and tag == "view 1" and counts == {"a": 20}
+        block.reset(a=30)
+        assert block.latest(True, view=2) == ({"a": 30}, None, False)  # nothing staged for view 2: read now
+        counts, tag, late = block.latest(True, view=0)  # view 2's fresh read left view 0's copy alone
+        assert late and tag == "view 0" and counts == {"a": 10}
+        block.stage("again", view=1)
+        block.read()  # a frame read at once: whatever any view set aside before is older
+        assert block.staged(1) is None
     finally:
         block.release()
 

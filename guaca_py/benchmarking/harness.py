@@ -114,22 +114,22 @@ def scene_paths(args: argparse.Namespace) -> list[Path]:
 class Results:
     """The results folder of one benchmark run: where it writes, the command that wrote it, the files."""
 
-    def __init__(self, args: argparse.Namespace, device: str, argv: list[str] | None = None):
+    def __init__(self, args: argparse.Namespace, device: str, argv: list[str] | None = None, name: str | None = None):
         script = Path(args.script)
-        self.name = script.stem
+        self.name = name or script.stem  # a mode of a script (paper_table.py scaling) writes a folder of its own
         self.device = device
         self.dir = args.out or script.parent / "results" / device_slug(device) / self.name
         argv = sys.argv[1:] if argv is None else argv
         self.command = f"python benchmarks/{script.name} {shlex.join(argv)}".rstrip()
 
     @classmethod
-    def existing(cls, args: argparse.Namespace, argv: list[str] | None = None) -> Results:
+    def existing(cls, args: argparse.Namespace, argv: list[str] | None = None, name: str | None = None) -> Results:
         """The folder a --replot reads and rewrites: --out, else this device's."""
         if args.out is not None:
-            return cls(args, "?", argv)
+            return cls(args, "?", argv, name)
         device = open_device()
         try:
-            return cls(args, device.name, argv)
+            return cls(args, device.name, argv, name)
         finally:
             device.release()
 

@@ -1,4 +1,4 @@
-"""Scenes the benchmarks build in code: many lights, full-screen quad stacks, triangles of one size.
+"""Scenes the benchmarks build in code: many lights, full-screen quad stacks, triangles of one size, a field of models.
 
 The many-lights scene is also a file (benchmarks/scenes/many_lights.yaml, which a test renders):
     python -m guaca_py.benchmarking.scenes OUT.yaml [--lights 1000] [--seed 0] [--spot-fraction 0]
@@ -8,12 +8,14 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 from pathlib import Path
 
 import numpy as np
 import yaml
 
 from ..scene.graph import Camera, MaterialInstance, MeshData, Node, Scene, Transform
+from ..scene.nodes import scene_bounds
 
 HALF = 10.0  # the lit area is [-HALF, HALF] in x and z
 
@@ -225,6 +227,82 @@ def triangle_scene(area_px: float, count: int, size: int, seed: int = 0) -> Scen
         position=(0, 0, TRIANGLES_EYE_Z), target=(0, 0, 0), up=(0, 1, 0), fov_y=TRIANGLES_FOV_Y, near=0.1, far=100
     )
     return Scene(camera=cam, background=(0.0, 0.0, 0.0), nodes=[node])
+
+
+FIELD_TURNS_DEG = (0, 25, -20, 40, -35, 10)  # each copy of a field turned a little more
+
+
+def field_doc(source: Path, scene: Scene, count: int, mesh_ref: str) -> dict:
+    """A square field of `count` copies of scene file `source`'s first file mesh, as a YAML-ready dict.
+
+    `scene` is `source` loaded (for the mesh's size); `mesh_ref` is how the field's YAML names
+    the mesh file (a path relative to where it is written). Every copy names the same file, so
+    the loader reads it once and the renderer uploads it once (meshes are shared by content).
+    The copies keep the first node's scale, height and material kind, stand on a grid 1.3 of
+    their footprint apart, turned and coloured in turn (the source's colours, its alpha), and are
+    seen from the source camera's direction, far enough for the whole field to fill the view.
+    """
+    doc = yaml.safe_load(source.read_text())
+    index = next(
+        (i for i, n in enumerate(doc.get("nodes") or []) if isinstance(n.get("mesh"), dict) and "file" in n["mesh"]),
+        None,
+    )
+    if index is None:
+        raise SystemExit(f"{source}: no node with a mesh file to make a field of")
+    template = doc["nodes"][index]
+    lo, hi = scene_bounds([scene.nodes[index]])
+    spacing = 1.3 * float(max(hi[0] - lo[0], hi[2] - lo[2]))
+    centre = (lo + hi) / 2
+    transform = dict(template.get("transform") or {})
+    t0 = np.array(transform.get("translation", [0, 0, 0]), float)
+    turn0 = np.array(transform.get("rotation_deg", [0, 0, 0]), float)
+    materials = [n.get("material") for n in doc["nodes"] if isinstance(n.get("mesh"), dict) and n.get("material")]
+    cols = math.ceil(math.sqrt(count))
+    rows = math.ceil(count / cols)
+    nodes = []
+    for k in range(count):
+        gx, gz = k % cols, k // cols
+        x, z = (gx - (cols - 1) / 2) * spacing, (gz - (rows - 1) / 2) * spacing
+        place = t0 + np.array([x - centre[0], 0.0, -z - centre[2]])
+        turn = turn0 + np.array([0.0, FIELD_TURNS_DEG[k % len(FIELD_TURNS_DEG)], 0.0])
+        nodes.append(
+            {
+                "name": f"copy_{k}",
+                "mesh": {"file": mesh_ref},
+                "transform": {**transform, "translation": _r(place), "rotation_deg": _r(turn)},
+                **({"material": materials[k % len(materials)]} if materials else {}),
+            }
+        )
+    cam = doc.get("camera") or {}
+    eye, target = np.array(cam.get("position", [0, 1, 5]), float), np.array(cam.get("target", [0, 0, 0]), float)
+    fov = float(cam.get("fov_y", 60))
+    reach = 0.5 * math.hypot(cols * spacing, rows * spacing, float(hi[1] - lo[1]))  # half the field's diagonal
+    distance = 0.8 * reach / math.sin(math.radians(fov) / 2)  # the field fills most of the view
+    look_at = np.array([0.0, float(centre[1]), 0.0])
+    position = look_at + (eye - target) / np.linalg.norm(eye - target) * distance
+    camera = {
+        "position": _r(position),
+        "target": _r(look_at),
+        "up": cam.get("up", [0, 1, 0]),
+        "fov_y": fov,
+        "near": _r(distance / 100)[0],
+        "far": _r(distance + 4 * reach)[0],
+    }
+    out = {"camera": camera, "background": doc.get("background", [0.05, 0.05, 0.06]), "lights": doc.get("lights", [])}
+    return {**out, "nodes": nodes}
+
+
+def write_field(source: Path, scene: Scene, count: int, out_dir: Path) -> Path:
+    """Write field_<count>.yaml (field_doc) into `out_dir`, naming the mesh by a path relative to it."""
+    doc = yaml.safe_load(source.read_text())
+    file = next(n["mesh"]["file"] for n in doc["nodes"] if isinstance(n.get("mesh"), dict) and "file" in n["mesh"])
+    mesh = Path(file) if Path(file).is_absolute() else source.parent / file
+    out_dir.mkdir(parents=True, exist_ok=True)
+    field = field_doc(source, scene, count, os.path.relpath(mesh.absolute(), out_dir.absolute()))
+    path = out_dir / f"field_{count}.yaml"
+    head = f"# {count} copies of {source.name}'s mesh: guaca_py.benchmarking.scenes.write_field\n"
+    path.write_text(head + yaml.dump(field, Dumper=_Flow, sort_keys=False, width=200))
+    return path
 
 
 def main(argv: list[str] | None = None) -> int:

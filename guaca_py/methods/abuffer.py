@@ -31,6 +31,7 @@ from ..registry import register
 from ..shaders import set_uniform, set_uniforms
 from ..shaders.slots import Buffer, Image
 from .base import LOCK_SETTING, MethodSpec, TransparencyMethod, resolve_lock
+from .shared_pool import ViewsNeed
 
 NODE_PAYLOAD_BYTES = 32  # depth + 7 payload words, see abuffer/layout.glsl.j2
 COUNTERS = ("alloc", "unlinked", "et_dropped", "et_culled", "guard")  # abuffer/layout.glsl.j2, same order
@@ -94,6 +95,7 @@ class ABuffer(TransparencyMethod):
         self._pixels = 0
         self.capacity = 0  # nodes in the pool, node 0 included
         self._want = 0  # pool size requested for the next prepare()
+        self._views_need = ViewsNeed()  # the views of one render_views() call share the pool
         self._last = {}
         self._counts: dict[str, int] | None = None
 
@@ -225,7 +227,7 @@ class ABuffer(TransparencyMethod):
 
     def _read_pool(self, frame) -> bool:
         """Counters into frame.stats and warnings; pool growth (for this frame or the next); whether to re-render."""
-        c, staged_capacity, late = self._counters.latest(frame.late_counters)
+        c, staged_capacity, late = self._counters.latest(frame.late_counters, frame.view_index)
         self._counts = c  # after_composite() reads these again
         capacity = staged_capacity if late else self.capacity
         if late:
@@ -252,6 +254,7 @@ class ABuffer(TransparencyMethod):
             )
         if c["guard"]:
             frame.stats.warn(f"{c['guard']} insertions hit max_steps and were dropped")
+        largest = self._views_need(frame, requested)  # of this call's views, known at its last
         auto = self.settings["budget_mb"] == "auto"
         grow = self.capacity < self.max_capacity(self._pixels)
         redraws = frame.stats.get("regrown", 0)  # re-draws of this frame so far (pipeline/retry.py)
@@ -261,10 +264,11 @@ class ABuffer(TransparencyMethod):
         if c["overflow"] and auto and redraws < self.settings["max_regrow"] and grow:
             self.capacity_request(int(requested * 1.15) + 1024, last=redraws + 1 >= self.settings["max_regrow"])
             return True
-        target = max(1024, int(requested * 1.15) + 1024)
-        if auto and not c["overflow"] and target * 3 < self.capacity * 2:
+        target = max(1024, int((largest or 0) * 1.15) + 1024)
+        if auto and largest is not None and not c["overflow"] and target * 3 < self.capacity * 2:
             # hold what the scene needs: shrink for the next frame once a third of the pool idles
-            # (growth adds 15%, so a steady scene does not oscillate)
+            # (growth adds 15%, so a steady scene does not oscillate); with several views, what
+            # the largest of them needs (methods/shared_pool.py)
             self.capacity_request(target)
         return False
 
@@ -273,11 +277,11 @@ class ABuffer(TransparencyMethod):
         read-back; unsorted lists report what the composite's walk left out (truncation)."""
         if self.kind.insertion != "unsorted":
             if frame.late_counters:
-                self._counters.stage(self.capacity)
+                self._counters.stage(self.capacity, frame.view_index)
             return
         frame.ctx.memory_barrier()
         if frame.late_counters:  # the previous frame's counts (read in finish), this frame's set aside
-            self._counters.stage(self.capacity)
+            self._counters.stage(self.capacity, frame.view_index)
             c = self.read_counters()
         else:
             c = self.read_counters(fresh=True)  # the composite counted after the geometry read

@@ -83,12 +83,13 @@ class ForwardBlend(TransparencyMethod):
         self._targets: list = []
         self._key = None
         self._pixels = 0
-        # samples-passed queries by (count name, frame parity): a frame loop without read-back reads
-        # the previous frame's, finished by then, instead of waiting for this frame's (finish)
+        # samples-passed queries by (count name, view, frame parity): a frame loop without read-back
+        # reads the previous frame's of the same view (render_views), finished by then, instead of
+        # waiting for this frame's (finish)
         self._queries: dict = {}
-        self._parity = 0
+        self._parity: dict[int, int] = {}  # per view
         self._counted: dict = {}  # this frame's queries by count name
-        self._previous: dict | None = None  # the previous frame's, in a loop without read-back
+        self._previous: dict[int, dict] = {}  # per view: the previous frame's, in a loop without read-back
         self._depth = None  # stochastic: S depth words per pixel
         self._depth_pixels = 0
 
@@ -178,18 +179,18 @@ class ForwardBlend(TransparencyMethod):
         ctx.blend_equation = mgl.FUNC_ADD
         ctx.blend_func = self.blend_state(mgl)
         try:
-            with self.samples_query(ctx, "blended"):
+            with self.samples_query(frame, "blended"):
                 frame.draw_transparent(uniforms or {}, per_program=frame.bind_lights, order=self.draw_order(frame))
         finally:
             ctx.disable(mgl.BLEND)
             ctx.blend_func = mgl.DEFAULT_BLENDING
             self._fbo.depth_mask = True
 
-    def samples_query(self, ctx, name: str):
+    def samples_query(self, frame, name: str):
         """This frame's samples-passed query for the count `name` (read in finish, not here: reading waits)."""
-        key = (name, self._parity)
+        key = (name, frame.view_index, self._parity.get(frame.view_index, 0))
         if key not in self._queries:
-            self._queries[key] = SamplesQuery(ctx)
+            self._queries[key] = SamplesQuery(frame.ctx)
         self._counted[name] = self._queries[key]
         return self._queries[key]
 
@@ -199,13 +200,17 @@ class ForwardBlend(TransparencyMethod):
         Reading a query waits for the GPU to finish its block; in the middle of a frame that left
         the GPU idle while the CPU submitted the rest (a sync per frame in an application's loop).
         """
-        now, self._counted, self._parity = self._counted, {}, self._parity ^ 1
-        if frame.late_counters and self._previous is not None:
-            late, self._previous = self._previous, now
-            frame.stats["fragments_of"] = "previous frame"
-            return {name: int(q.samples) for name, q in late.items()}
-        self._previous = now if frame.late_counters else None
-        return {name: int(q.samples) for name, q in now.items()}
+        view = frame.view_index
+        now, self._counted = self._counted, {}
+        self._parity[view] = self._parity.get(view, 0) ^ 1
+        if not frame.late_counters:
+            self._previous.clear()  # a later loop starts afresh, not from the counts of older frames
+            return {name: int(q.samples) for name, q in now.items()}
+        late, self._previous[view] = self._previous.get(view), now
+        if late is None:
+            return {name: int(q.samples) for name, q in now.items()}
+        frame.stats["fragments_of"] = "previous frame"
+        return {name: int(q.samples) for name, q in late.items()}
 
     def render_transparent(self, frame) -> None:
         """One geometry pass, shading and blending every transparent fragment in front of the opaque depth
@@ -233,7 +238,7 @@ class ForwardBlend(TransparencyMethod):
             ctx.disable(mgl.BLEND)
             ctx.depth_func = "<"
             self._depth.bind_to_storage_buffer(Buffer.STOCHASTIC_DEPTH)
-            with self.samples_query(ctx, "depth_pass"):  # reported beside 'blended' (finish)
+            with self.samples_query(frame, "depth_pass"):  # reported beside 'blended' (finish)
                 frame.draw_transparent(uniforms)
             g.depth_only.depth_mask = True
             ctx.memory_barrier()
@@ -304,7 +309,7 @@ class ForwardBlend(TransparencyMethod):
         for q in self._queries.values():
             q.release()
         self._queries.clear()
-        self._counted, self._previous = {}, None
+        self._counted, self._previous = {}, {}
         if self._depth is not None:
             self._depth.release()
             self._depth = None

@@ -23,6 +23,7 @@ from ..registry import register
 from ..shaders import set_uniform
 from ..shaders.slots import Buffer
 from .base import MethodSpec, TransparencyMethod
+from .shared_pool import ViewsNeed
 
 PAYLOAD_BYTES = 32  # common/payload_pack.glsl.j2: 8 words per fragment
 COUNTERS = ("stored", "overflow", "alloc", "wasted_pages", "guard")
@@ -98,6 +99,7 @@ class CountedStorage(TransparencyMethod):
             self.page_bytes = self.page * PAYLOAD_BYTES + 4  # payload slots + link
             self.capacity = 0  # pages in the pool, null page 0 included
             self._want = 0  # pool size requested for the next prepare()
+            self._views_need = ViewsNeed()  # the views of one render_views() call share the pool
 
     # ------------------------------------------------------------------ helpers
     def _tools(self, frame) -> None:
@@ -334,6 +336,7 @@ class CountedStorage(TransparencyMethod):
             "early_termination_culled": 0,
         }
         self._last = {"used_pages": used, "stored": c["stored"]}
+        largest = self._views_need(frame, used)  # of this call's views, known at its last
         auto = self.settings["budget_mb"] == "auto"
         limit = self._page_limit(frame.ctx)
         regrown = frame.stats.get("regrown", 0)  # re-renders of this frame so far
@@ -360,9 +363,11 @@ class CountedStorage(TransparencyMethod):
             )
         if c["guard"]:
             self._warn(frame, f"{c['guard']} paged_ll insertions hit max_steps and were dropped")
-        target = max(1024, int(used * 1.15) + 1024)
-        if auto and not c["overflow"] and self.capacity > 2 * target:
-            self._want = target  # shrink for the next frame (this frame still reads the current pool)
+        target = max(1024, int((largest or 0) * 1.15) + 1024)
+        if auto and largest is not None and not c["overflow"] and self.capacity > 2 * target:
+            # shrink for the next frame (this frame still reads the current pool); with several
+            # views, to what the largest of them used (methods/shared_pool.py)
+            self._want = target
         return False
 
     def _page_memory(self) -> dict:

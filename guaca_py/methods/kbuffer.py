@@ -82,11 +82,11 @@ class KBuffer(TransparencyMethod):
 
     def finish(self, frame) -> bool:
         """Counters → stats (a frame late in a loop without read-back); overflow and lock-guard drops become warnings."""
-        c, _, late = self._counters.latest(frame.late_counters)
+        c, _, late = self._counters.latest(frame.late_counters, frame.view_index)
         if late:
             frame.stats["fragments_of"] = "previous frame"
         if frame.late_counters:
-            self._counters.stage()
+            self._counters.stage(view=frame.view_index)
         evicted = c["inserted"] - c["filled"]  # every insert into a full pixel evicts one
         rejected = c["merged"] + c["dropped"] - evicted  # fragments that arrived behind a full pixel
         total = c["inserted"] + rejected + c["guard"]

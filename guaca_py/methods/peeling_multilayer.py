@@ -22,6 +22,7 @@ from ..registry import register
 from ..shaders.slots import Buffer
 from .base import MethodSpec
 from .peeling import PEEL_SETTINGS, Peeling, PeelKind
+from .shared_pool import ViewsNeed
 
 NODE_BYTES = 32  # 8 payload words
 INF_BITS = 0x7F800000  # +inf: "nothing dropped" in the per-pixel dropped-depth words
@@ -43,6 +44,8 @@ class NodePool:
         self._slots = self._nodes = self._dropped = None
         self._pixels = 0
         self.used_nodes = 0  # most nodes one pass of this frame used
+        self._held = 0  # what the last call's largest view used: the next call's first frame may shrink to it
+        self._views_need = ViewsNeed()  # the views of one render_views() call share the pool
 
     def step_vars(self) -> dict:
         """M is compiled into the insertion and the step."""
@@ -83,14 +86,22 @@ class NodePool:
         if pool == "auto":
             start = min(max(1024, frame.pixel_count * self.layers + 1), self.pool_nodes(self.settings["max_pool_mb"]))
             cap = self.capacity if self._pixels == frame.pixel_count and self.capacity else start
-            if self.used_nodes and self.used_nodes + 1 < cap // 4:
-                # the last frame used under a quarter: hold what the scene needs (a deeper frame
-                # grows the pool again between its passes, no frame is lost)
-                cap = max(1024, int(self.used_nodes * 1.15) + 2)
+            held, self._held = self._held, 0
+            if held and held + 1 < cap // 4:
+                # the last frame (with several views: its largest view) used under a quarter: hold
+                # what the scene needs (a deeper frame grows the pool again between its passes,
+                # no frame is lost)
+                cap = max(1024, int(held * 1.15) + 2)
         else:
             cap = self.pool_nodes(pool)
         self.alloc(frame, cap)
         self.used_nodes = 0
+
+    def frame_done(self, frame) -> None:
+        """After a frame's passes: at a call's last view, what its largest view used (methods/shared_pool.py)."""
+        largest = self._views_need(frame, self.used_nodes)
+        if largest is not None:
+            self._held = largest
 
     def bind(self) -> None:
         """Slots, pool and dropped depths on the storage bindings the insertion and the steps read."""
@@ -176,6 +187,7 @@ def peel_multilayer(m: Peeling, frame) -> None:
             )
             m.warn(f"{m.id}: {why}; {left} fragments not peeled")
             break
+    pool.frame_done(frame)
     if s["pool_overflow"] and m.settings["pool_mb"] != "auto":
         m.warn(
             f"{m.id}: node pool overflowed ({s['pool_overflow']} nodes lacking, "

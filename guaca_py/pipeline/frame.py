@@ -46,6 +46,11 @@ class FrameContext:
     # Frame loops without read-back: counters are read a frame late instead of waiting for the GPU
     # (the stats then describe the previous frame, and an overflow grows the pool for the next one)
     late_counters: bool = False
+    # Which view of a Renderer.render_views() call this frame is, of how many (render(): 0 of 1).
+    # Views share the method's storage; what is read a frame late is kept per view, and a pool
+    # shrinks only to hold the largest view's need (methods/shared_pool.py)
+    view_index: int = 0
+    view_count: int = 1
     # GL names of this frame's textures known to hold one colour in every pixel (the composite of a
     # frame with nothing drawn; per-pixel passes of such an image): passes that would not change
     # such an image (FXAA) skip it

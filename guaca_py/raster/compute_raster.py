@@ -448,9 +448,9 @@ class ComputeRasterizer:
         self._fresh, self._frame = True, None
         # a frame loop without read-back reads the previous frame's totals (finished by now) and sets
         # this frame's aside for the next, so the CPU never waits for this frame here
-        c, _, late = self._state.latest(frame.late_counters)
+        c, _, late = self._state.latest(frame.late_counters, frame.view_index)
         if frame.late_counters:
-            self._state.stage()
+            self._state.stage(view=frame.view_index)
         frame.stats.setdefault("raster", {})["compute"] = {
             "order": frame.method.raster_order(frame.width * frame.height),
             "triangles": self._triangles,

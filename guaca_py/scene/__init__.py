@@ -6,6 +6,7 @@ from .loader import demo_scene, load, load_scene, load_scene_text
 from .mesh_io import load_mesh_file
 from .primitives import PRIMITIVE_KINDS, make_primitive, primitive_params
 from .trimesh_scene import SceneWarning
+from .views import camera_row, cube_map, stereo_pair
 
 __all__ = [
     "LIGHT_TYPES",
@@ -19,6 +20,8 @@ __all__ = [
     "SceneWarning",
     "Transform",
     "as_scene",
+    "camera_row",
+    "cube_map",
     "demo_scene",
     "load",
     "load_mesh_file",
@@ -26,4 +29,5 @@ __all__ = [
     "load_scene_text",
     "make_primitive",
     "primitive_params",
+    "stereo_pair",
 ]

@@ -204,11 +204,11 @@ class Camera:
     near: float = 0.1
     far: float = 100.0
 
-    def check(self) -> None:
-        """Refuse a camera no frame can be made from (ConfigError naming the field and what to do)."""
+    def check(self, where: str = "camera") -> None:
+        """Refuse a camera no frame can be made from (ConfigError naming `where`, the field and what to do)."""
 
         def fail(key: str, reason: str, hint: str) -> ConfigError:
-            return ConfigError(reason, key=f"camera.{key}", hint=hint)
+            return ConfigError(reason, key=f"{where}.{key}", hint=hint)
 
         vecs = {}
         for key in ("position", "target", "up"):
