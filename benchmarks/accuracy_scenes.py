@@ -3,9 +3,7 @@
 Usage: python benchmarks/accuracy_scenes.py [--out DIR] [--scenes .scenes] [--scene-names NAME ...] [--size 1024]
                                            [--ref-k 8] [--tile 2048] [--frames 5] [--warmup 2] [--warmup-s 1.5]
                                            [--budget-s 3] [--scene-budget-s S] [--methods ID ...]
-                                           [--samples 1 2 4 8] [--no-merged] [--flip-workers N] [--replot]
-With 4 among the sample counts, a row `presort_lf_et x4 merged` adds antialiasing.merge: adjacent
-(through the compute rasterizer; approximate: merged samples take one triangle's shading).
+                                           [--samples 1 2 4 8] [--flip-workers N] [--replot]
 Each scene renders through guaca_py.reference.linear_pipeline: light culling as in the default
 pipeline, no tone mapping or FXAA (linear output), threshold 0.999 for every method, so exact
 methods differ from the reference by their aliasing alone. Reference (guaca_py.reference.exact_reference):
@@ -58,16 +56,12 @@ AA_METHOD = "presort_lf_et"  # the exact default, measured at every sample count
 REFERENCE_METHOD = "presort_lf"  # exact without early termination
 
 
-def configs(methods: list[str] | None, samples: list[int], merged: bool = True) -> list[tuple[str, str, int, dict]]:
+def configs(methods: list[str] | None, samples: list[int]) -> list[tuple[str, str, int, dict]]:
     """(label, method, samples, overrides): the default at each sample count (`raster: auto`: the compute
-    rasterizer on a GPU, with coverage masks), the same with antialiasing.merge: adjacent at 4 samples
-    (through the compute rasterizer, which merges; `merge` in the overrides is the pipeline's), the same
-    through the hardware rasterizer at 1 and 4 samples, then every other method at 1 sample (a method the
-    device refuses is skipped). The sample counts come first: a scene's time budget cuts the method list,
-    not the anti-aliasing result."""
+    rasterizer on a GPU, with coverage masks), the same through the hardware rasterizer at 1 and 4 samples,
+    then every other method at 1 sample (a method the device refuses is skipped). The sample counts come
+    first: a scene's time budget cuts the method list, not the anti-aliasing result."""
     out = [(f"{AA_METHOD} x{n}", AA_METHOD, n, {}) for n in samples]
-    if merged and 4 in samples:
-        out.append((f"{AA_METHOD} x4 merged", AA_METHOD, 4, {"merge": "adjacent", "raster": "compute"}))
     out += [(f"{AA_METHOD} hw x{n}", AA_METHOD, n, {"raster": "hardware"}) for n in (1, 4) if n in samples]
     return out + [(m, m, 1, {}) for m in (methods or method_ids()) if m != AA_METHOD]
 
@@ -119,9 +113,8 @@ def run_scene(ctx, path: Path, args, pool, progress: Progress) -> dict:
         )
 
     def renderer(n: int, mid: str, overrides: dict):
-        settings = {k: v for k, v in overrides.items() if k != "merge"}
-        pipeline = linear_pipeline(n, merge=overrides.get("merge", "off"))
-        return lambda: Renderer(pipeline, ctx=ctx, method=mid, method_overrides=settings or None)
+        pipeline = linear_pipeline(n)
+        return lambda: Renderer(pipeline, ctx=ctx, method=mid, method_overrides=overrides or None)
 
     rows = config_rows(
         (
@@ -130,13 +123,12 @@ def run_scene(ctx, path: Path, args, pool, progress: Progress) -> dict:
                     "label": label,
                     "method": mid,
                     "samples": n,
-                    # merged samples take the shading of the triangle at the pixel centre: not exact
-                    "exact": method_class(mid).exact and "merge" not in overrides,
+                    "exact": method_class(mid).exact,
                     "settings": overrides,
                 },
                 renderer(n, mid, overrides),
             )
-            for label, mid, n, overrides in configs(args.methods, args.samples, not args.no_merged)
+            for label, mid, n, overrides in configs(args.methods, args.samples)
         ),
         measure_row,
         report,
@@ -297,7 +289,6 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--methods", nargs="*", help="methods at 1 sample (default: every method the device runs)")
     ap.add_argument("--samples", nargs="*", type=int, default=[1, 2, 4, 8], help=f"sample counts of {AA_METHOD}")
-    ap.add_argument("--no-merged", action="store_true", help="leave out the 4-sample row with antialiasing.merge")
     ap.add_argument("--flip-workers", type=int, default=max(1, (os.cpu_count() or 2) // 2), help="0: inline")
     args = ap.parse_args(argv)
     if args.replot:
@@ -312,7 +303,7 @@ def main(argv: list[str] | None = None) -> int:
         pool = ProcessPoolExecutor(args.flip_workers, mp_context=spawn) if args.flip_workers > 0 else None
         device = open_device()
         res = Results(args, device.name, argv)
-        progress = Progress(len(paths) * len(configs(args.methods, args.samples, not args.no_merged)))
+        progress = Progress(len(paths) * len(configs(args.methods, args.samples)))
         for path in paths:
             rec = run_scene(device.ctx, path, args, pool, progress)
             rec.update(device=device.name, command=res.command)

@@ -12,7 +12,6 @@ import dataclasses
 import numpy as np
 
 from .errors import ConfigError, UnsupportedMethodError
-from .numeric import Range
 from .pipeline.settings import Setting, resolve_settings
 from .shaders.slots import Buffer, Texture
 
@@ -23,20 +22,6 @@ SETTINGS = {
         1,
         "samples per pixel: 1 (no MSAA) or 2/4/8 (multisampled G-buffer, coverage-aware A-buffer)",
         choices=SAMPLE_COUNTS,
-    ),
-    "merge": Setting(
-        (str,),
-        "off",
-        "adjacent: the triangle covering a pixel's centre takes into its node the samples its edge "
-        "neighbours cover there (fewer nodes, each shaded once; compute-rasterized draws only)",
-        choices=("off", "adjacent"),
-    ),
-    "merge_crease_deg": Setting(
-        (int, float),
-        15.0,
-        "merge: adjacent joins two triangles only where the surface bends by at most this many degrees "
-        "between them (a merged sample takes the other triangle's shading)",
-        check=Range(0, 180, lo_open=True).problem,
     ),
 }
 # Every node packs its mask into the free upper 16 bits of payload word 6 (common/payload_pack):

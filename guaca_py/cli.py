@@ -217,8 +217,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--set",
         action="append",
         metavar="KEY=VALUE",
-        help="a transparency setting (e.g. --set budget_mb=1) or antialiasing.* (samples, merge, "
-        "merge_crease_deg); repeatable",
+        help="a transparency setting (e.g. --set budget_mb=1) or antialiasing.* (samples); repeatable",
     )
     r.add_argument("--width", type=int)
     r.add_argument("--height", type=int)

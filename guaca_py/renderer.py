@@ -158,10 +158,6 @@ class Renderer:
                 # where those samples lie (the compute rasterizer tests coverage there): the probe that
                 # counted them, cached; made here, as it binds a framebuffer and a storage buffer of its own
                 positions=antialiasing.sample_positions(self.ctx, aa["samples"], programs) if aa["samples"] > 1 else (),
-                # antialiasing.merge: adjacent triangles' samples join the node of the one covering the
-                # pixel centre (the compute rasterizer's setup stage; nothing to merge with one sample)
-                merge=samples > 1 and aa["merge"] == "adjacent",
-                merge_crease_deg=aa["merge_crease_deg"],
             ),
         )
         self.materials = MaterialRegistry(material_paths)

@@ -86,8 +86,6 @@ class GeometryPass(Pass):
             "samples": self._samples,
             **({"asked": aa.asked} if aa.asked != self._samples else {}),
         }
-        if aa.merge:
-            frame.stats["antialiasing"].update(merge="adjacent", merge_crease_deg=aa.merge_crease_deg)
         frame.stats.memory("gbuffer", frame.pixel_count * (3 * 8 + 4) * self._samples)
         method = frame.method
         has_transparency = bool(frame.transparent_draws)
@@ -124,12 +122,6 @@ class GeometryPass(Pass):
         if frame.transparent_draws and not method.geometry_in_composite:
             frame.rerender = method.finish(frame)
             frame.rerender = frame.raster.finish(frame) or frame.rerender
-        hardware = frame.stats.get("raster", {}).get("hardware_draws", 0)
-        if self.device.antialiasing.merge and hardware:  # the hardware path keeps a node per triangle and pixel
-            frame.stats.warn(
-                f"antialiasing.merge: adjacent applies to compute-rasterized draws; {hardware} transparent draws "
-                "went through the hardware rasterizer unmerged (transparency.raster: compute merges them)"
-            )
 
     def release(self) -> None:
         """Free the G-buffer."""

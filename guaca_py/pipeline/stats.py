@@ -22,7 +22,7 @@ SCHEMA: dict[str, str] = {
     "fragments_of": "'previous frame' when counters are read a frame late",
     "memory": "bytes each buffer holds: {name: bytes}",
     "warnings": "things the frame did not do as asked (overflow, clipped timers, unsupported views)",
-    "antialiasing": "samples per pixel (and samples asked, merge settings)",
+    "antialiasing": "samples per pixel (and samples asked)",
     "raster": "which rasterizer drew the transparent draws and why; compute rasterizer totals",
     "lights": "light culling: visible, shaded, mode, grid size and layers",
     "critical_section": "the lock a critical-section method ran with",
