@@ -1,8 +1,10 @@
-"""`antialiasing: {samples: N}`: the setting, the device's limit and which methods take coverage.
+"""`antialiasing: {samples: N, supersample: K}`: the settings, the device's limits and which methods take coverage.
 
 With N > 1 samples the G-buffer is multisampled, each A-buffer node carries its fragment's
 coverage mask (gl_SampleMaskIn) and the composite blends every node into the samples it covers,
 then averages them (docs/antialiasing.md). Methods that cannot carry coverage refuse N > 1.
+With K > 1 the frame renders at K times the width and height and the composite averages each
+K x K block of rendered pixels into one output pixel (every method takes it).
 """
 
 from __future__ import annotations
@@ -16,12 +18,20 @@ from .pipeline.settings import Setting, resolve_settings
 from .shaders.slots import Buffer, Texture
 
 SAMPLE_COUNTS = (1, 2, 4, 8)
+SUPERSAMPLE_FACTORS = (1, 2, 3, 4)
 SETTINGS = {
     "samples": Setting(
         (int,),
         1,
         "samples per pixel: 1 (no MSAA) or 2/4/8 (multisampled G-buffer, coverage-aware A-buffer)",
         choices=SAMPLE_COUNTS,
+    ),
+    "supersample": Setting(
+        (int,),
+        1,
+        "1 (off) or 2/3/4: render at that many times the width and height, then average each block "
+        "of rendered pixels into one output pixel (box filter, linear colour)",
+        choices=SUPERSAMPLE_FACTORS,
     ),
 }
 # Every node packs its mask into the free upper 16 bits of payload word 6 (common/payload_pack):
@@ -131,3 +141,8 @@ def with_settings(config, given: dict, source: str):
 def with_samples(config, samples: int, source: str = "the samples argument"):
     """A copy of PipelineConfig `config` rendering `samples` per pixel (`source`: where the number came from)."""
     return with_settings(config, {"samples": samples}, source)
+
+
+def with_supersample(config, factor: int, source: str = "the supersample argument"):
+    """A copy of PipelineConfig `config` rendering at `factor` times its width and height, box filtered down."""
+    return with_settings(config, {"supersample": factor}, source)

@@ -158,6 +158,7 @@ class Renderer:
                 # where those samples lie (the compute rasterizer tests coverage there): the probe that
                 # counted them, cached; made here, as it binds a framebuffer and a storage buffer of its own
                 positions=antialiasing.sample_positions(self.ctx, aa["samples"], programs) if aa["samples"] > 1 else (),
+                supersample=aa["supersample"],
             ),
         )
         self.materials = MaterialRegistry(material_paths)
@@ -287,10 +288,12 @@ class Renderer:
         except TypeError as exc:
             raise ArgumentError(str(exc), key="scene") from None
         scene.check()  # the data classes are mutable: a camera or light changed since construction is checked here
+        k = self.device.antialiasing.supersample  # the frame renders at k times the size, box filtered down
         w, h = check_resolution(
             self.caps.limits,
             self.config.resolution[0] if width is None else width,
             self.config.resolution[1] if height is None else height,
+            supersample=k,
         )
         if viewport is not None:
             _check_viewport(viewport)
@@ -301,7 +304,7 @@ class Renderer:
             scene.check_structure()  # a part of the wrong type: named here (not checked on every frame)
             raise
         frame = FrameContext(
-            self.device, self.method, self.raster, scene, w, h, draws, *self.camera_matrices(scene, w, h)
+            self.device, self.method, self.raster, scene, k * w, k * h, draws, *self.camera_matrices(scene, w, h)
         )
         frame.late_counters = not read_back
         frame.resources.enter(None)
@@ -314,6 +317,7 @@ class Renderer:
                 "insertion_path": self.caps.insertion_path,
                 "device": self.caps.gl_renderer,
                 "resolution": [w, h],
+                "render_resolution": [k * w, k * h],
                 "draws": len(draws),
                 "transparent_draws": len(frame.transparent_draws),
                 "passes": {},

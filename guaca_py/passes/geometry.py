@@ -85,6 +85,7 @@ class GeometryPass(Pass):
         frame.stats["antialiasing"] = {
             "samples": self._samples,
             **({"asked": aa.asked} if aa.asked != self._samples else {}),
+            **({"supersample": aa.supersample} if aa.supersample > 1 else {}),
         }
         frame.stats.memory("gbuffer", frame.pixel_count * (3 * 8 + 4) * self._samples)
         method = frame.method
@@ -107,7 +108,10 @@ class GeometryPass(Pass):
         prog = self.device.programs.program(
             {
                 "vertex_shader": ("composite/fullscreen.vert.j2", {}),
-                "fragment_shader": ("gbuffer/host_layer.frag.j2", {"host_mark": HOST_MARK}),
+                "fragment_shader": (
+                    "gbuffer/host_layer.frag.j2",
+                    {"host_mark": HOST_MARK, "supersample": self.device.antialiasing.supersample},
+                ),
             },
             label="host_layer",
         )
