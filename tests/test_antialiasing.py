@@ -279,7 +279,7 @@ def test_sample_counts_validated(gl_context):
     with pytest.raises(ConfigError, match="antialiasing"):
         pipeline_from_text("antialiasing: 4\npasses: [geometry, light_culling, composite]")
     cfg = pipeline_from_text("antialiasing: {samples: 2}\npasses: [geometry, light_culling, composite]")
-    assert cfg.antialiasing == {"samples": 2, "supersample": 1}
+    assert cfg.antialiasing == {"samples": 2, "supersample": 1, "auto": False}
     most = device_samples(gl_context)
     if most >= 8:
         pytest.skip("the device renders 8 samples")
