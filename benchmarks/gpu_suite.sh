@@ -17,6 +17,8 @@
 #   aa_cost        presort_lf_et at 1 and 4 samples on every real scene          ~1 min, limit 70 s
 #   methods_table  every method on the demo scene, each in its own process       ~1 min, limit 80 s
 #   accuracy       speed against error on the dragons, every method, 8x reference ~1.5 min, limit 100 s
+#   aa_chart       (not in the default PARTS) the anti-aliasing chart on the dragons and both Sponza
+#                  views: 1 sample +- FXAA, 2/4/8 samples, supersample 2/3, auto   ~3 min, limit 300 s
 # The test log and each part's console output go to /tmp/gpu_suite/ (and into the archive), never
 # into the tree.
 set -uo pipefail
@@ -73,6 +75,8 @@ part aa_cost 70 $py benchmarks/aa_cost.py --size "$size" --scene-names dragons s
   hairball_v1 hairball_v2 --samples 1 4
 part methods_table 80 $py benchmarks/methods_table.py --size "$size"
 part accuracy 100 $py benchmarks/accuracy_scenes.py --size "$size" --scene-names dragons
+part aa_chart 300 $py benchmarks/accuracy_scenes.py --aa-chart --size "$size" --scene-names dragons \
+  sponza_dabrovic_v1 sponza_dabrovic_v2 --scene-budget-s 90
 
 if [[ -n $copy_to ]]; then
   mkdir -p "$copy_to"
