@@ -326,8 +326,8 @@ def test_lit_default_pipeline_with_samples(renderer_factory):
 @pytest.mark.skipif(shutil.which("glslangValidator") is None, reason="glslangValidator (glslang-tools) not installed")
 @pytest.mark.parametrize("method", ["presort_lf_et", "presort_lf_merge2_et", "presort_cs_et", "post_merge16"])
 def test_gpu_variants_at_8_samples_pass_the_reference_compiler(aa_renderers, tmp_path, monkeypatch, method):
-    """The NVIDIA variants (64-bit insertion, ballots, interlock) at 8 samples, which this device cannot build;
-    the 64-bit list walk passes nearer records with plain loads."""
+    """The NVIDIA variants (64-bit insertion, ballots, interlock) at 8 samples, which this device cannot build
+    (the composite also supersampled 3x); the 64-bit list walk passes nearer records with plain loads."""
     from guaca_py.passes import composite
     from guaca_py.pipeline.drawlist import build_draw_list
     from guaca_py.renderer import method_settings
@@ -355,11 +355,14 @@ def test_gpu_variants_at_8_samples_pass_the_reference_compiler(aa_renderers, tmp
     cvars = dict(seen, method_extensions=m.resolve_extensions(), **m.template_vars())
     cvars.update(aa_samples=8, output_format="rgba32f")
     sources["comp"] = r.shaders.render("composite/shade_composite.comp.j2", **cvars)
+    cvars.update(supersample=3)
+    supersampled = r.shaders.render("composite/shade_composite.comp.j2", **cvars)
     assert "gl_SampleMaskIn" in sources["frag"] and "sampler2DMS" in sources["comp"]
+    assert "gua_composite_pixel(pix * 3 + ivec2(x, y))" in supersampled
     assert "uint64_t" in sources["frag"] or m.link_bytes == 4
     if method.startswith("presort_lf"):  # the sorted 64-bit walk: loads past nearer records
         assert "uint64_t seen = gua_links[slot];" in sources["frag"]
-    for stage, text in sources.items():
+    for stage, text in [*sources.items(), ("comp", supersampled)]:
         path = tmp_path / f"s.{stage}"
         path.write_text(text)
         run = subprocess.run(["glslangValidator", "-S", stage, str(path)], capture_output=True, text=True)
