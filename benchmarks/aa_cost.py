@@ -1,11 +1,11 @@
 """What anti-aliasing costs, pass by pass: the default pipeline at 1 and N samples per scene and path.
 
 Usage: python benchmarks/aa_cost.py [--out DIR] [--scenes .scenes] [--scene-names dragons ...] [--size 1024]
-                                   [--samples 1 4] [--merge off adjacent] [--raster auto hardware compute/mesh]
+                                   [--samples 1 4] [--raster auto hardware compute/mesh]
                                    [--paths default 32bit] [--method presort_lf] [--warmup-s 1.5] [--frames 8]
 For every scene, A-buffer insertion path (`default`: the device's; `32bit`: 64-bit atomics switched
 off, so the CAS-linked lists), rasterizer (`transparency.raster`; compute/ORDER also sets
-raster_order) and sample count (with antialiasing.merge at each --merge above 1 sample): per-pass
+raster_order) and sample count: per-pass
 medians held at the full SM clock, stored fragments, and the cost against 1 sample (--method:
 another transparency method in the default pipeline). With the compute rasterizer's stage profiler
 on (GUACA_RASTER_STAGES=1) it adds the time per stage (the last timed frame of each row).
@@ -15,7 +15,7 @@ Writes benchmarks/results/<device>/aa_cost/aa_cost.{json,md}.
 from __future__ import annotations
 
 from guaca_py import GuacaError, Renderer, load_pipeline
-from guaca_py.antialiasing import with_settings
+from guaca_py.antialiasing import with_samples
 from guaca_py.benchmarking import (
     Progress,
     Results,
@@ -32,13 +32,13 @@ PATHS = {"default": (), "32bit": ("atomic_int64",)}  # capabilities switched off
 STAGES = ("between_draws", "vertex", "order", "setup", "bin", "fine")
 
 
-def configs(args) -> list[tuple[str, int, str]]:
-    """(raster, samples, merge) of one scene and path; merging only above 1 sample."""
-    return [(r, n, m) for r in args.raster for n in args.samples for m in args.merge if n > 1 or m == "off"]
+def configs(args) -> list[tuple[str, int]]:
+    """(raster, samples) of one scene and path."""
+    return [(r, n) for r in args.raster for n in args.samples]
 
 
 def run(args, progress: Progress) -> tuple[str, list[dict]]:
-    """Every (path, scene, raster, samples, merge) row; the device's name."""
+    """Every (path, scene, raster, samples) row; the device's name."""
     rows, name, seen = [], "?", set()
     for path in args.paths:
         device = open_device(PATHS[path])
@@ -52,14 +52,14 @@ def run(args, progress: Progress) -> tuple[str, list[dict]]:
         progress.note(f"insertion path {path}: {device.caps.insertion_path}")
         for scene_path in scene_paths(args):
             scene = load_scene(scene_path)
-            for raster, n, merge in configs(args):
+            for raster, n in configs(args):
                 row = {"scene": scene_path.stem, "path": device.caps.insertion_path, "rasterizer": raster}
-                row.update(samples=n, merge=merge)
+                row.update(samples=n)
                 kind, _, order = raster.partition("/")  # compute/ORDER: with that raster_order
                 overrides = {"raster": kind, **({"raster_order": order} if order else {})}
                 r = None
                 try:
-                    pipeline = with_settings(load_pipeline("default"), {"samples": n, "merge": merge}, "aa_cost")
+                    pipeline = with_samples(load_pipeline("default"), n, "aa_cost")
                     r = Renderer(
                         pipeline,
                         ctx=device.ctx,
@@ -78,7 +78,7 @@ def run(args, progress: Progress) -> tuple[str, list[dict]]:
                     if r is not None:
                         r.release()
                 rows.append(row)
-                label = f"{scene_path.stem} {row['path']} {raster} x{n}{' merged' if merge != 'off' else ''}"
+                label = f"{scene_path.stem} {row['path']} {raster} x{n}"
                 if "skipped" in row:
                     progress.step(f"{label}: skipped ({row['skipped']})")
                     continue
@@ -101,8 +101,7 @@ def markdown(rec: dict) -> str:
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
-        merged = " merged" if r.get("merge", "off") != "off" else ""
-        head = f"| {r['scene']} | {r['path']} | {r['rasterizer']} | {r['samples']}{merged} |"
+        head = f"| {r['scene']} | {r['path']} | {r['rasterizer']} | {r['samples']} |"
         if "skipped" in r:
             out.append(f"{head} skipped: {r['skipped']} | | | | | |")
             continue
@@ -143,9 +142,6 @@ def main(argv: list[str] | None = None) -> int:
         "--raster", nargs="*", default=["auto"], help="auto, hardware, compute or compute/ORDER (with raster_order)"
     )
     ap.add_argument("--paths", nargs="*", default=["default"], choices=list(PATHS))
-    ap.add_argument(
-        "--merge", nargs="*", default=["off"], choices=["off", "adjacent"], help="antialiasing.merge above 1 sample"
-    )
     args = ap.parse_args(argv)
     if args.replot:
         res = Results.existing(args, argv)

@@ -3,9 +3,7 @@
 Usage: python benchmarks/accuracy_scenes.py [--out DIR] [--scenes .scenes] [--scene-names NAME ...] [--size 1024]
                                            [--ref-k 8] [--tile 2048] [--frames 5] [--warmup 2] [--warmup-s 1.5]
                                            [--budget-s 3] [--scene-budget-s S] [--methods ID ...]
-                                           [--samples 1 2 4 8] [--no-merged] [--flip-workers N] [--replot]
-With 4 among the sample counts, a row `presort_lf_et x4 merged` adds antialiasing.merge: adjacent
-(through the compute rasterizer; approximate: merged samples take one triangle's shading).
+                                           [--samples 1 2 4 8] [--flip-workers N] [--aa-chart] [--replot]
 Each scene renders through guaca_py.reference.linear_pipeline: light culling as in the default
 pipeline, no tone mapping or FXAA (linear output), threshold 0.999 for every method, so exact
 methods differ from the reference by their aliasing alone. Reference (guaca_py.reference.exact_reference):
@@ -20,6 +18,13 @@ times) while the sampled SM clock was below its maximum, and marked if it still 
 whose first frame exceeds --budget-s is timed on one frame; once a scene has run for --scene-budget-s
 its remaining configurations are skipped (the sample counts run first; the first always runs).
 Writes benchmarks/results/<device>/accuracy_scenes/<scene>/accuracy.{json,md,png} and its README.md.
+A reference tile whose fragments overflow the A-buffer pool is rendered again in tiles half as wide
+(down to 256 px), so one command serves scenes of every depth complexity.
+
+--aa-chart: instead of the methods, the ways to anti-alias (guaca_py.benchmarking.aa_chart): presort_lf_et at 1
+sample with and without FXAA, at 2/4/8 coverage samples, supersampled 2x and 3x, and antialiasing: auto, each
+timed and measured against the same reference; writes accuracy_scenes/aa_chart/<scene>.json, and aa_chart.md
+(one table) and aa_chart.png (edge RMSE and FLIP against frame time, one panel per scene) beside them.
 """
 
 from __future__ import annotations
@@ -34,6 +39,7 @@ from guaca_py.benchmarking import (
     RETRIES,
     Progress,
     Results,
+    aa_chart,
     add_reference_args,
     below_max_clock,
     bench_args,
@@ -54,36 +60,66 @@ from guaca_py.methods import method_class, method_ids
 from guaca_py.reference import edge_pixels, exact_reference, frame_errors, linear_pipeline
 from guaca_py.scene.loader import load_scene
 
+SMALLEST_TILE = 256  # a reference tile that overflows the pool is halved down to this side
+
 AA_METHOD = "presort_lf_et"  # the exact default, measured at every sample count
 REFERENCE_METHOD = "presort_lf"  # exact without early termination
 
 
-def configs(methods: list[str] | None, samples: list[int], merged: bool = True) -> list[tuple[str, str, int, dict]]:
+def configs(methods: list[str] | None, samples: list[int]) -> list[tuple[str, str, int, dict]]:
     """(label, method, samples, overrides): the default at each sample count (`raster: auto`: the compute
-    rasterizer on a GPU, with coverage masks), the same with antialiasing.merge: adjacent at 4 samples
-    (through the compute rasterizer, which merges; `merge` in the overrides is the pipeline's), the same
-    through the hardware rasterizer at 1 and 4 samples, then every other method at 1 sample (a method the
-    device refuses is skipped). The sample counts come first: a scene's time budget cuts the method list,
-    not the anti-aliasing result."""
+    rasterizer on a GPU, with coverage masks), the same through the hardware rasterizer at 1 and 4 samples,
+    then every other method at 1 sample (a method the device refuses is skipped). The sample counts come
+    first: a scene's time budget cuts the method list, not the anti-aliasing result."""
     out = [(f"{AA_METHOD} x{n}", AA_METHOD, n, {}) for n in samples]
-    if merged and 4 in samples:
-        out.append((f"{AA_METHOD} x4 merged", AA_METHOD, 4, {"merge": "adjacent", "raster": "compute"}))
     out += [(f"{AA_METHOD} hw x{n}", AA_METHOD, n, {"raster": "hardware"}) for n in (1, 4) if n in samples]
     return out + [(m, m, 1, {}) for m in (methods or method_ids()) if m != AA_METHOD]
 
 
-def run_scene(ctx, path: Path, args, pool, progress: Progress) -> dict:
+def method_configs(ctx, args):
+    """(row, make_renderer) of configs(): the exact default at each sample count and rasterizer, then the methods."""
+
+    def renderer(n: int, mid: str, overrides: dict):
+        pipeline = linear_pipeline(n)
+        return lambda: Renderer(pipeline, ctx=ctx, method=mid, method_overrides=overrides or None)
+
+    return [
+        (
+            {"label": label, "method": mid, "samples": n, "exact": method_class(mid).exact, "settings": overrides},
+            renderer(n, mid, overrides),
+        )
+        for label, mid, n, overrides in configs(args.methods, args.samples)
+    ]
+
+
+def aa_configs(ctx, args):
+    """(row, make_renderer) of the anti-aliasing chart (guaca_py.benchmarking.aa_chart)."""
+    return [(row, lambda p=pipeline: Renderer(p, ctx=ctx)) for row, pipeline in aa_chart.configs()]
+
+
+def reference(ctx, scene, args, progress: Progress, name: str):
+    """The scene's supersampled exact reference; a tile that overflowed the pool is rendered again, halved."""
+    tile = args.tile
+    while True:
+        t0 = time.perf_counter()
+        ref = exact_reference(ctx, scene, args.size, args.size, args.ref_k, tile, REFERENCE_METHOD)
+        progress.note(
+            f"{name}: reference {args.ref_k}x ({ref.tiles} tiles of at most {tile}²) {time.perf_counter() - t0:.1f} s"
+            + (f", OVERFLOW: {ref.overflow} fragments dropped" if ref.overflow else "")
+        )
+        if not ref.overflow or tile // 2 < SMALLEST_TILE:
+            return ref, tile
+        tile //= 2
+
+
+def run_scene(ctx, path: Path, args, pool, progress: Progress, make_configs=method_configs) -> dict:
     """Reference, then every configuration of one scene (until --scene-budget-s); the scene's JSON record."""
     t0 = time.perf_counter()
     scene = load_scene(path)
     size = args.size
-    ref = exact_reference(ctx, scene, size, size, args.ref_k, args.tile, REFERENCE_METHOD)
+    ref, tile = reference(ctx, scene, args, progress, path.stem)
     edges = edge_pixels(ref)
-    progress.note(
-        f"{path.stem}: reference {args.ref_k}x ({ref.tiles} tiles of at most {args.tile}²) "
-        f"{time.perf_counter() - t0:.1f} s, edge pixels {edges.mean():.1%}"
-        + (f", OVERFLOW: {ref.overflow} fragments dropped (smaller --tile)" if ref.overflow else "")
-    )
+    progress.note(f"{path.stem}: edge pixels {edges.mean():.1%}")
 
     def measure_row(r: Renderer, row: dict) -> None:
         point = measure_point(
@@ -100,7 +136,9 @@ def run_scene(ctx, path: Path, args, pool, progress: Progress) -> dict:
         row.update(ms=point.total_ms, pass_ms=point.pass_ms, frames=point.frames, timer=point.timer)
         row.update(clock=point.clock, clock_retries=point.clock_retries)
         row["samples"] = frame.stats.get("antialiasing", {}).get("samples", row["samples"])
-        row.update(frame_errors(frame.linear, ref.image, edges, pool))
+        row["render_resolution"] = frame.stats.get("render_resolution")
+        row["auto_chose"] = aa_chart.chosen(frame.stats)
+        row.update(frame_errors(aa_chart.linear_of(frame), ref.image, edges, pool))
         row["fragments"] = frame.stats.get("fragments", {})
         row["raster"] = frame.stats.get("raster", {}).get("why")
         row["memory"] = frame.stats.get("memory", {})
@@ -118,31 +156,7 @@ def run_scene(ctx, path: Path, args, pool, progress: Progress) -> dict:
             f"edge {row['edge_rmse_255']:6.2f}{fl}{mhz}{again}"
         )
 
-    def renderer(n: int, mid: str, overrides: dict):
-        settings = {k: v for k, v in overrides.items() if k != "merge"}
-        pipeline = linear_pipeline(n, merge=overrides.get("merge", "off"))
-        return lambda: Renderer(pipeline, ctx=ctx, method=mid, method_overrides=settings or None)
-
-    rows = config_rows(
-        (
-            (
-                {
-                    "label": label,
-                    "method": mid,
-                    "samples": n,
-                    # merged samples take the shading of the triangle at the pixel centre: not exact
-                    "exact": method_class(mid).exact and "merge" not in overrides,
-                    "settings": overrides,
-                },
-                renderer(n, mid, overrides),
-            )
-            for label, mid, n, overrides in configs(args.methods, args.samples, not args.no_merged)
-        ),
-        measure_row,
-        report,
-        t0,
-        args.scene_budget_s,
-    )
+    rows = config_rows(make_configs(ctx, args), measure_row, report, t0, args.scene_budget_s)
     for row in rows:
         if hasattr(row.get("flip"), "result"):
             row["flip"] = row["flip"].result()
@@ -154,7 +168,7 @@ def run_scene(ctx, path: Path, args, pool, progress: Progress) -> dict:
             "method": REFERENCE_METHOD,
             "k": args.ref_k,
             "tiles": ref.tiles,
-            "tile_px": args.tile,
+            "tile_px": tile,
             "overflow": ref.overflow,
             "edge_tolerance": 0.05,
         },
@@ -297,9 +311,10 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--methods", nargs="*", help="methods at 1 sample (default: every method the device runs)")
     ap.add_argument("--samples", nargs="*", type=int, default=[1, 2, 4, 8], help=f"sample counts of {AA_METHOD}")
-    ap.add_argument("--no-merged", action="store_true", help="leave out the 4-sample row with antialiasing.merge")
     ap.add_argument("--flip-workers", type=int, default=max(1, (os.cpu_count() or 2) // 2), help="0: inline")
+    ap.add_argument("--aa-chart", action="store_true", help="the ways to anti-alias instead of the methods")
     args = ap.parse_args(argv)
+    publish_folder = publish_aa_chart if args.aa_chart else publish
     if args.replot:
         res = Results.existing(args, argv)
     else:
@@ -312,18 +327,35 @@ def main(argv: list[str] | None = None) -> int:
         pool = ProcessPoolExecutor(args.flip_workers, mp_context=spawn) if args.flip_workers > 0 else None
         device = open_device()
         res = Results(args, device.name, argv)
-        progress = Progress(len(paths) * len(configs(args.methods, args.samples, not args.no_merged)))
+        make = aa_configs if args.aa_chart else method_configs
+        progress = Progress(len(paths) * len(make(device.ctx, args)))
         for path in paths:
-            rec = run_scene(device.ctx, path, args, pool, progress)
+            rec = run_scene(device.ctx, path, args, pool, progress, make)
             rec.update(device=device.name, command=res.command)
-            (res.dir / rec["scene"]).mkdir(parents=True, exist_ok=True)
-            (res.dir / rec["scene"] / "accuracy.json").write_text(json.dumps(rec, indent=1))
-            publish(res.dir)  # after every scene: a run cut short keeps the scenes it finished
+            where = (
+                res.dir / "aa_chart" / f"{rec['scene']}.json"
+                if args.aa_chart
+                else res.dir / rec["scene"] / "accuracy.json"
+            )
+            where.parent.mkdir(parents=True, exist_ok=True)
+            where.write_text(json.dumps(rec, indent=1))
+            publish_folder(res.dir)  # after every scene: a run cut short keeps the scenes it finished
         if pool is not None:
             pool.shutdown()
-    publish(res.dir)
-    print(f"wrote {res.dir}", flush=True)
+    publish_folder(res.dir)
+    print(f"wrote {res.dir}" + ("/aa_chart.md" if args.aa_chart else ""), flush=True)
     return 0
+
+
+def publish_aa_chart(folder: Path) -> None:
+    """The anti-aliasing chart's table and figure from every scene's JSON in folder/aa_chart/ (earlier runs too)."""
+    recs = [json.loads(p.read_text()) for p in sorted((folder / "aa_chart").glob("*.json"))]
+    (folder / "aa_chart.md").write_text(aa_chart.markdown(recs, lambda rec: rec["command"]))
+    plt = pyplot()
+    if plt is not None and recs:
+        fig = aa_chart.chart(recs, plt)
+        fig.savefig(folder / "aa_chart.png", dpi=110)
+        plt.close(fig)
 
 
 def publish(folder: Path) -> None:

@@ -20,6 +20,8 @@
 #   scaling        cost against frame size (512² to 4096²), a stereo pair against one frame, fields of
 #                  1 to 64 dragons (paper_table.py scaling)                     ~4 min, limit 250 s
 #                  not in the default list (it would push the suite past 570 s): PARTS=scaling
+#   aa_chart       (not in the default PARTS) the anti-aliasing chart on the dragons and both Sponza
+#                  views: 1 sample +- FXAA, 2/4/8 samples, supersample 2/3, auto   ~3 min, limit 300 s
 # The test log and each part's console output go to /tmp/gpu_suite/ (and into the archive), never
 # into the tree.
 set -uo pipefail
@@ -77,6 +79,8 @@ part aa_cost 70 $py benchmarks/aa_cost.py --size "$size" --scene-names dragons s
 part methods_table 80 $py benchmarks/methods_table.py --size "$size"
 part accuracy 100 $py benchmarks/accuracy_scenes.py --size "$size" --scene-names dragons
 part scaling 250 $py benchmarks/paper_table.py scaling --budget-s 225
+part aa_chart 300 $py benchmarks/accuracy_scenes.py --aa-chart --size "$size" --scene-names dragons \
+  sponza_dabrovic_v1 sponza_dabrovic_v2 --scene-budget-s 90
 
 if [[ -n $copy_to ]]; then
   mkdir -p "$copy_to"

@@ -3,17 +3,20 @@
 Usage: python benchmarks/temporal_stability.py [--out DIR] [--scenes .scenes] [--scene-names NAME ...]
                                                [--size 1024] [--frames 60] [--degrees 3] [--ref-k 2] [--tile 2048]
                                                [--tolerance 1] [--repeat 4] [--methods ID ...] [--samples 4]
-                                               [--scene-budget-s S] [--replot]
+                                               [--supersample 2] [--scene-budget-s S] [--replot]
 Path: --frames poses orbiting the scene camera's target about its up axis by --degrees in all
 (small steps: edges crawl by a fraction of a pixel per frame). Pixels that should not change
 between frames t and t+1: those whose supersampled exact reference (presort_lf at --ref-k x, in
 tiles of at most --tile px, box filtered) changes by less than --tolerance/255 in every channel.
-Per configuration (every method at 1 sample, skipped where the device refuses it; presort_lf_et at each --samples;
-the first method runs first, then the sample counts, then the others): the mean over frame pairs
+Per configuration (every method at 1 sample, skipped where the device refuses it; presort_lf_et at each --samples
+and supersampled at each --supersample factor; the first method runs first, then the sample counts and
+supersampling factors, then the others): the mean over frame pairs
 of the mean |difference| (1/255, linear output clipped to [0, 1]) on those pixels, the share of
 them that moved by more than --tolerance/255 (flicker), and whether rendering --repeat poses of
 the path again gives bit-identical images (races in overflow, ties, stochastic seeds). Pipeline:
-guaca_py.reference.linear_pipeline (threshold 0.999, culled lights, linear output). Once a scene
+guaca_py.reference.linear_pipeline (threshold 0.999, culled lights, linear output). With the default
+--ref-k 2 the reference renders what supersample 2 renders (presort_lf, 2x2 box filtered), so that row
+moves only where the reference moves: compare supersampling with --ref-k 4. Once a scene
 has run for --scene-budget-s (reference included), its remaining configurations are skipped
 (the first always runs). No times: accuracy does not depend on the timer.
 Writes benchmarks/results/<device>/temporal_stability/<scene>/stability.{json,md} and its README.md.
@@ -30,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from guaca_py import Renderer
+from guaca_py.antialiasing import with_supersample
 from guaca_py.benchmarking import (
     Progress,
     Results,
@@ -84,11 +88,14 @@ def stable_masks(ctx, poses: list, size: int, k: int, tolerance: float, tile: in
     return masks, overflow
 
 
-def configs(args) -> list[tuple[str, str, int]]:
-    """(label, method, samples): every method at 1 sample, presort_lf_et's extra sample counts right after the
-    first method (a scene's time budget then cuts the method list, not the sample counts)."""
-    confs = [(m, m, 1) for m in (args.methods or method_ids())]
-    confs[1:1] = [(f"{AA_METHOD} x{n}", AA_METHOD, n) for n in args.samples if n > 1]
+def configs(args) -> list[tuple[str, str, int, int]]:
+    """(label, method, samples, supersample): every method at 1 sample, presort_lf_et's extra sample counts and
+    supersampling factors right after the first method (a scene's time budget then cuts the method list, not
+    the anti-aliasing rows)."""
+    confs = [(m, m, 1, 1) for m in (args.methods or method_ids())]
+    confs[1:1] = [(f"{AA_METHOD} x{n}", AA_METHOD, n, 1) for n in args.samples if n > 1] + [
+        (f"{AA_METHOD} supersample {k}", AA_METHOD, 1, k) for k in args.supersample if k > 1
+    ]
     return confs
 
 
@@ -148,14 +155,14 @@ def run_scene(ctx, path: Path, args, progress: Progress) -> dict:
             f"flicker {row['flicker_share']:7.2%}  bit-identical {row['bit_identical']}  ({row['seconds']:.1f} s)"
         )
 
-    def renderer(n: int, mid: str):
-        return lambda: Renderer(linear_pipeline(n), ctx=ctx, method=mid)
+    def renderer(n: int, k: int, mid: str):
+        return lambda: Renderer(with_supersample(linear_pipeline(n), k, "--supersample"), ctx=ctx, method=mid)
+
+    def row(label: str, mid: str, n: int, k: int) -> dict:
+        return {"label": label, "method": mid, "samples": n, "exact": method_class(mid).exact, "supersample": k}
 
     rows = config_rows(
-        (
-            ({"label": label, "method": mid, "samples": n, "exact": method_class(mid).exact}, renderer(n, mid))
-            for label, mid, n in configs(args)
-        ),
+        ((row(label, mid, n, k), renderer(n, k, mid)) for label, mid, n, k in configs(args)),
         measure_row,
         report,
         t0,
@@ -176,6 +183,12 @@ def run_scene(ctx, path: Path, args, progress: Progress) -> dict:
         "stable_share": share,
         "rows": rows,
     }
+
+
+def samples(row: dict) -> str:
+    """A row's samples per pixel, and its supersampling factor where it has one."""
+    k = row.get("supersample", 1)
+    return f"{row['samples']}" + (f" (supersample {k}: {row['samples'] * k * k} per pixel)" if k > 1 else "")
 
 
 def markdown(rec: dict) -> str:
@@ -200,11 +213,11 @@ def markdown(rec: dict) -> str:
     ]
     for r in rec["rows"]:
         if "skipped" in r:
-            out.append(f"| {r['label']} | | {r['samples']} | skipped: {r['skipped']} | | |")
+            out.append(f"| {r['label']} | | {samples(r)} | skipped: {r['skipped']} | | |")
             continue
         ident = "yes" if r["bit_identical"] else f"no (max {r['repeat_max_diff_255']:.2f}/255)"
         out.append(
-            f"| {r['label']} | {'yes' if r['exact'] else 'no'} | {r['samples']} | {r['mean_diff_255']:.3f} | "
+            f"| {r['label']} | {'yes' if r['exact'] else 'no'} | {samples(r)} | {r['mean_diff_255']:.3f} | "
             f"{r['flicker_share']:.2%} | {ident} |"
         )
     return "\n".join(out) + "\n"
@@ -219,6 +232,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeat", type=int, default=4, help="poses rendered again for the bit-identity check")
     ap.add_argument("--methods", nargs="*", help="methods at 1 sample (default: every method the device runs)")
     ap.add_argument("--samples", nargs="*", type=int, default=[4], help=f"extra sample counts of {AA_METHOD}")
+    ap.add_argument("--supersample", nargs="*", type=int, default=[2], help=f"supersampling factors of {AA_METHOD}")
     ap.add_argument(
         "--scene-budget-s", type=float, default=0.0, help="per scene (reference included): later configurations skipped"
     )

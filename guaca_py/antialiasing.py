@@ -1,8 +1,11 @@
-"""`antialiasing: {samples: N}`: the setting, the device's limit and which methods take coverage.
+"""`antialiasing: {samples: N, supersample: K}`: the settings, the device's limits and which methods take coverage.
 
 With N > 1 samples the G-buffer is multisampled, each A-buffer node carries its fragment's
 coverage mask (gl_SampleMaskIn) and the composite blends every node into the samples it covers,
 then averages them (docs/antialiasing.md). Methods that cannot carry coverage refuse N > 1.
+With K > 1 the frame renders at K times the width and height and the composite averages each
+K x K block of rendered pixels into one output pixel (every method takes it). `antialiasing: auto`
+chooses one of the two per frame (guaca_py/antialiasing_auto.py).
 """
 
 from __future__ import annotations
@@ -12,11 +15,11 @@ import dataclasses
 import numpy as np
 
 from .errors import ConfigError, UnsupportedMethodError
-from .numeric import Range
 from .pipeline.settings import Setting, resolve_settings
 from .shaders.slots import Buffer, Texture
 
 SAMPLE_COUNTS = (1, 2, 4, 8)
+SUPERSAMPLE_FACTORS = (1, 2, 3, 4)
 SETTINGS = {
     "samples": Setting(
         (int,),
@@ -24,21 +27,22 @@ SETTINGS = {
         "samples per pixel: 1 (no MSAA) or 2/4/8 (multisampled G-buffer, coverage-aware A-buffer)",
         choices=SAMPLE_COUNTS,
     ),
-    "merge": Setting(
-        (str,),
-        "off",
-        "adjacent: the triangle covering a pixel's centre takes into its node the samples its edge "
-        "neighbours cover there (fewer nodes, each shaded once; compute-rasterized draws only)",
-        choices=("off", "adjacent"),
+    "supersample": Setting(
+        (int,),
+        1,
+        "1 (off) or 2/3/4: render at that many times the width and height, then average each block "
+        "of rendered pixels into one output pixel (box filter, linear colour)",
+        choices=SUPERSAMPLE_FACTORS,
     ),
-    "merge_crease_deg": Setting(
-        (int, float),
-        15.0,
-        "merge: adjacent joins two triangles only where the surface bends by at most this many degrees "
-        "between them (a merged sample takes the other triangle's shading)",
-        check=Range(0, 180, lo_open=True).problem,
+    "auto": Setting(
+        (bool,),
+        False,
+        "choose per frame between 4 coverage samples and supersample 2 from the previous frame's "
+        "measurements (`antialiasing: auto` is short for {auto: true}; docs/antialiasing.md)",
     ),
 }
+AUTO = "auto"  # `antialiasing: auto`
+CHOSEN_BY_AUTO = ("samples", "supersample")  # the settings auto decides per frame
 # Every node packs its mask into the free upper 16 bits of payload word 6 (common/payload_pack):
 # the node keeps its size, so memory per fragment is unchanged by antialiasing.
 SUGGESTION = "presort_lf_et (or another one-pass A-buffer method: presort_lf, presort_lf_merge2_et, " + (
@@ -50,9 +54,17 @@ def parse(given, error) -> dict:
     """Validated `antialiasing:` settings; `error(key, reason, hint)` builds the exception."""
     if given is None:
         given = {}
+    if given == AUTO:
+        given = {"auto": True}
     if not isinstance(given, dict):
-        raise error(None, "must be a mapping like {samples: 4}", None)
-    return resolve_settings(SETTINGS, given, error)
+        raise error(None, "must be a mapping like {samples: 4}, or auto", None)
+    out = resolve_settings(SETTINGS, given, error)
+    fixed = [k for k in CHOSEN_BY_AUTO if out[k] != SETTINGS[k].default]
+    if out["auto"] and fixed:
+        raise error(
+            "auto", f"chooses {' and '.join(CHOSEN_BY_AUTO)} itself, per frame; {fixed[0]} is given too", "give one"
+        )
+    return out
 
 
 def device_samples(ctx) -> int:
@@ -133,16 +145,30 @@ def check_method(method_cls, samples: int) -> None:
         raise UnsupportedMethodError(reason)
 
 
-def with_settings(config, given: dict, source: str):
-    """A copy of PipelineConfig `config` with `antialiasing:` settings `given` (from `source`) over its own."""
+def with_settings(config, given: dict | str, source: str):
+    """A copy of PipelineConfig `config` with `antialiasing:` settings `given` (from `source`) over its own.
+
+    What is given wins: `auto` over the config's samples and supersample, either of those over its `auto`.
+    """
 
     def error(key, reason, hint):
-        return ConfigError(reason, source, None, f"antialiasing.{key}", hint)
+        return ConfigError(reason, source, None, "antialiasing" + (f".{key}" if key else ""), hint)
 
+    given = parse(given, error) if given == AUTO else given
     parse(given, error)  # a bad value is reported under `source`, not under the pipeline file
-    return dataclasses.replace(config, antialiasing=parse({**config.antialiasing, **given}, error))
+    base = dict(config.antialiasing)
+    if given.get("auto"):
+        base.update({k: SETTINGS[k].default for k in CHOSEN_BY_AUTO})
+    elif any(k in given for k in CHOSEN_BY_AUTO):
+        base["auto"] = False
+    return dataclasses.replace(config, antialiasing=parse({**base, **given}, error))
 
 
 def with_samples(config, samples: int, source: str = "the samples argument"):
     """A copy of PipelineConfig `config` rendering `samples` per pixel (`source`: where the number came from)."""
     return with_settings(config, {"samples": samples}, source)
+
+
+def with_supersample(config, factor: int, source: str = "the supersample argument"):
+    """A copy of PipelineConfig `config` rendering at `factor` times its width and height, box filtered down."""
+    return with_settings(config, {"supersample": factor}, source)

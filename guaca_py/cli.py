@@ -18,25 +18,29 @@ def _options_over_pipeline(args):
     """The pipeline with --samples and `--set antialiasing.*` applied, and the `--set` transparency settings.
 
     Each value is checked under the option that gave it (`--samples`, `--set KEY=VALUE`), so an error
-    never names the pipeline file for a value the file does not hold.
+    never names the pipeline file for a value the file does not hold. A key without a prefix is the
+    method's when the method has that setting, else antialiasing's when it has it (`--set supersample=2`).
     """
-    from .antialiasing import with_samples, with_settings
+    from . import antialiasing
+    from .methods import auto, method_class
     from .pipeline.config import load_pipeline
     from .renderer import method_settings
 
     pipeline = load_pipeline(args.pipeline)
     mid = args.method or pipeline.transparency["method"]
+    schema = auto.settings_schema() if mid == auto.AUTO else method_class(mid).settings_schema()
     overrides = {}
     for item in args.set or []:
         key, value = parse_set_option(item)
-        if key.startswith("antialiasing."):
-            pipeline = with_settings(pipeline, {key.removeprefix("antialiasing."): value}, f"--set {item}")
+        if key.startswith("antialiasing.") or (key in antialiasing.SETTINGS and key not in schema):
+            given = {key.removeprefix("antialiasing."): value}
+            pipeline = antialiasing.with_settings(pipeline, given, f"--set {item}")
             continue
         key = key.removeprefix("transparency.")  # the settings live under the pipeline's `transparency:` key
         method_settings(mid, {}, {key: value}, overrides_source=f"--set {item}")  # checked under the item
         overrides[key] = value
     if args.samples is not None:  # antialiasing.samples of the pipeline, overridden
-        pipeline = with_samples(pipeline, args.samples, "--samples")
+        pipeline = antialiasing.with_samples(pipeline, args.samples, "--samples")
     return pipeline, overrides
 
 
@@ -217,8 +221,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--set",
         action="append",
         metavar="KEY=VALUE",
-        help="a transparency setting (e.g. --set budget_mb=1) or antialiasing.* (samples, merge, "
-        "merge_crease_deg); repeatable",
+        help="a transparency setting (e.g. --set budget_mb=1) or an antialiasing one (antialiasing.samples=4, "
+        "supersample=2); repeatable",
     )
     r.add_argument("--width", type=int)
     r.add_argument("--height", type=int)

@@ -75,7 +75,6 @@ class MeshCache(_FrameCache):
         super().__init__(keep_frames)
         self.ctx = ctx
         self._buffers: dict[str, tuple] = {}
-        self._adjacency: dict[str, object] = {}
         self._vaos: dict[str, dict[int, object]] = {}
         self.uploads = 0  # meshes uploaded so far (tests and stats: work proportional to change)
 
@@ -91,21 +90,6 @@ class MeshCache(_FrameCache):
             )
             self.uploads += 1
         return self._buffers[key]
-
-    def adjacency(self, mesh, limits=None):
-        """uint32 buffer of each triangle's edge neighbours' apexes (raster/adjacency.py), by content, built on
-        first use, when it fits the device's storage rule `limits` (else a LimitError naming antialiasing.merge)."""
-        from .limits import require_bytes
-        from .raster.adjacency import edge_apexes
-
-        key = mesh_digest(mesh)
-        self._touch(key)
-        buf = self._adjacency.get(key)
-        if buf is None:
-            hint = "leave antialiasing.merge off for this mesh's scene, or split the mesh (12 bytes a triangle)"
-            require_bytes(limits, mesh.triangle_count * 12, "antialiasing.merge", hint)
-            buf = self._adjacency[key] = self.ctx.buffer(edge_apexes(mesh.indices).tobytes())
-        return buf
 
     def vao(self, mesh, prog):
         """VAO drawing `mesh` with `prog` (attributes the program does not use are skipped)."""
@@ -125,10 +109,7 @@ class MeshCache(_FrameCache):
     def _free(self, key) -> None:
         for v in self._vaos.pop(key, {}).values():
             v.release()
-        buffers = [*self._buffers.pop(key, ())]
-        if key in self._adjacency:
-            buffers.append(self._adjacency.pop(key))
-        for b in buffers:
+        for b in self._buffers.pop(key, ()):
             b.release()
 
 

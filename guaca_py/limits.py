@@ -147,41 +147,55 @@ def _size(value, name: str, what: str | None) -> int:
     return v
 
 
-def check_resolution(limits: DeviceLimits | None, width, height, what: str | None = None) -> tuple[int, int]:
+def check_resolution(
+    limits: DeviceLimits | None, width, height, what: str | None = None, supersample: int = 1
+) -> tuple[int, int]:
     """Validate a frame size against the device: positive integers, within render-target and buffer limits.
 
     Errors name `what` (a command-line option, a pipeline key) where given, else the arguments
-    `width` and `height` of the Python call.
+    `width` and `height` of the Python call. With `supersample` K > 1 the frame renders at K times
+    the width and height: that size is held to the same limits, and its error names antialiasing.supersample.
     """
     width, height = _size(width, "width", what), _size(height, "height", what)
     what = what or "width/height"
     if limits is None:
         return width, height
+    problem = size_problem(limits, width, height)
+    if problem:
+        raise LimitError(f"{width}x{height} {problem[0]}", key=what, hint=problem[1])
+    problem = size_problem(limits, supersample * width, supersample * height) if supersample > 1 else None
+    if problem:  # every target and per-pixel buffer before the composite has the rendered size
+        fits = [k for k in range(supersample - 1, 1, -1) if not size_problem(limits, k * width, k * height)]
+        lower = f"use antialiasing.supersample {fits[0]}" if fits else "turn antialiasing.supersample off (1)"
+        raise LimitError(
+            f"{width}x{height} supersampled {supersample}x renders {supersample * width}x{supersample * height}, "
+            f"which {problem[0]}",
+            key="antialiasing.supersample",
+            hint=f"{lower}, or render a smaller image",
+        )
+    return width, height
+
+
+def size_problem(limits: DeviceLimits, width: int, height: int) -> tuple[str, str] | None:
+    """(what a frame of `width` x `height` exceeds, what to do instead), or None when the device holds it."""
     mw, mh = limits.max_framebuffer
     if width > mw or height > mh:
-        raise LimitError(
-            f"{width}x{height} exceeds the device's largest render target {mw}x{mh}",
-            key=what,
-            hint="render at most that size (tile larger images)",
-        )
+        return f"exceeds the device's largest render target {mw}x{mh}", "render at most that size (tile larger images)"
     per_target = width * height * limits.texture_bytes_per_pixel
     if per_target > limits.max_buffer_bytes:
         most = int((limits.max_buffer_bytes / limits.texture_bytes_per_pixel) ** 0.5)
-        raise LimitError(
-            f"{width}x{height} needs {per_target / _MIB:.0f} MiB per float render target; the device holds "
-            f"{limits.describe()}",
-            key=what,
-            hint=f"render at most about {most}x{most} pixels",
+        return (
+            f"needs {per_target / _MIB:.0f} MiB per float render target; the device holds {limits.describe()}",
+            f"render at most about {most}x{most} pixels",
         )
     frame_bytes = width * height * FRAME_BYTES_PER_PIXEL
     if limits.available_bytes and frame_bytes > limits.available_bytes * MEMORY_SHARE:
-        raise LimitError(
-            f"{width}x{height} needs about {frame_bytes / _MIB:.0f} MiB of render targets; the device reports "
+        return (
+            f"needs about {frame_bytes / _MIB:.0f} MiB of render targets; the device reports "
             f"{limits.available_bytes / _MIB:.0f} MiB free",
-            key=what,
-            hint="render a smaller image",
+            "render a smaller image",
         )
-    return width, height
+    return None
 
 
 def pool_node_limit(limits: DeviceLimits | None, head_words: int, link_bytes: int, payload_bytes: int) -> int:

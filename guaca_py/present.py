@@ -170,7 +170,10 @@ class Presenter:
         prog = self.device.programs.program(
             {
                 "vertex_shader": ("composite/fullscreen.vert.j2", {}),
-                "fragment_shader": ("present/depth_out.frag.j2", {"samples": gbuffer.samples}),
+                "fragment_shader": (
+                    "present/depth_out.frag.j2",
+                    {"samples": gbuffer.samples, "supersample": self.device.antialiasing.supersample},
+                ),
             },
             label="host_depth",
         )

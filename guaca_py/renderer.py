@@ -13,6 +13,7 @@ import moderngl
 import numpy as np
 
 from . import antialiasing
+from .antialiasing_auto import COVERAGE_SAMPLES, AutoAntialiasing
 from .context import create_context
 from .errors import ArgumentError, ConfigError, GuacaError, UnsupportedMethodError
 from .gpu_resources import MeshCache, TextureCache
@@ -148,26 +149,14 @@ class Renderer:
         self.config = load_pipeline(pipeline)
         programs = ShaderLibrary(self.ctx, template_paths)
         aa = self.config.antialiasing
-        # samples per pixel the G-buffer and coverage masks hold (a device may round antialiasing.samples up)
-        samples = antialiasing.check_device(self.ctx, aa["samples"], self.caps.gl_renderer, programs)
-        self.device = Device(
-            self.ctx,
-            self.caps,
-            programs,
-            MeshCache(self.ctx),
-            TextureCache(self.ctx),
-            Antialiasing(
-                samples=samples,
-                asked=aa["samples"],
-                # where those samples lie (the compute rasterizer tests coverage there): the probe that
-                # counted them, cached; made here, as it binds a framebuffer and a storage buffer of its own
-                positions=antialiasing.sample_positions(self.ctx, aa["samples"], programs) if aa["samples"] > 1 else (),
-                # antialiasing.merge: adjacent triangles' samples join the node of the one covering the
-                # pixel centre (the compute rasterizer's setup stage; nothing to merge with one sample)
-                merge=samples > 1 and aa["merge"] == "adjacent",
-                merge_crease_deg=aa["merge_crease_deg"],
-            ),
-        )
+        # antialiasing: auto renders 4 samples or supersample 2, chosen per frame; the first frame takes 4 samples
+        self.aa_auto = self._auto_antialiasing(programs) if aa["auto"] else None
+        self._aa_choice: dict | None = None  # antialiasing: auto's choice for the current call, reported per frame
+        if self.aa_auto is not None:
+            chosen = self.aa_auto.coverage or self.aa_auto.supersampled
+        else:
+            chosen = self._antialiasing(aa["samples"], aa["supersample"], programs)
+        self.device = Device(self.ctx, self.caps, programs, MeshCache(self.ctx), TextureCache(self.ctx), chosen)
         self.materials = MaterialRegistry(material_paths)
         self.presenter = Presenter(self.device)
         self.draw_cache = DrawCache()
@@ -179,6 +168,24 @@ class Renderer:
         self.raster = RasterRouter(self.device)  # hardware or compute rasterization of transparent draws
         self.set_method(method or self.config.transparency["method"], method_overrides)
         self.passes = assemble(self.config, self.device, self.fuse_passes)
+
+    def _antialiasing(self, samples: int, supersample: int, programs) -> Antialiasing:
+        """The device's rendering of `samples` per pixel (refused above its limit) at `supersample`."""
+        return Antialiasing(
+            # samples per pixel the G-buffer and coverage masks hold (a device may round antialiasing.samples up)
+            samples=antialiasing.check_device(self.ctx, samples, self.caps.gl_renderer, programs),
+            asked=samples,
+            # where those samples lie (the compute rasterizer tests coverage there): the probe that
+            # counted them, cached; made here, as it binds a framebuffer and a storage buffer of its own
+            positions=antialiasing.sample_positions(self.ctx, samples, programs) if samples > 1 else (),
+            supersample=supersample,
+        )
+
+    def _auto_antialiasing(self, programs) -> AutoAntialiasing:
+        """antialiasing: auto's two modes on this device (4 samples, or its most where fewer; none without MSAA)."""
+        most = max(s for s in antialiasing.SAMPLE_COUNTS if s <= max(1, antialiasing.device_samples(self.ctx)))
+        n = min(COVERAGE_SAMPLES, most)
+        return AutoAntialiasing(self._antialiasing(n, 1, programs) if n > 1 else None)
 
     @property
     def shaders(self) -> ShaderLibrary:
@@ -220,7 +227,10 @@ class Renderer:
         reason = cls.unsupported_reason(self.caps)
         if reason:
             raise UnsupportedMethodError(f"method '{mid}' cannot run on {self.caps.gl_renderer}: {reason}")
-        antialiasing.check_method(cls, self.samples)
+        if self.aa_auto is None:
+            antialiasing.check_method(cls, self.samples)
+        else:  # a method without coverage masks renders supersampled under antialiasing: auto
+            self.aa_auto.method_changed(cls)
         method = cls(method_settings(mid, self.config.transparency, overrides, self.config.source), self.caps)
         method.aa_samples = self.device.samples  # coverage masks in its nodes; the compute rasterizer has none
         refusal = method.compute_raster_refusal() if method.settings["raster"] == "compute" else None
@@ -357,10 +367,17 @@ class Renderer:
         except TypeError as exc:
             raise ArgumentError(str(exc), key="scene") from None
         scene.check()  # the data classes are mutable: a camera or light changed since construction is checked here
+        self._aa_choice = None
+        if self.aa_auto is not None:  # this call's mode, from what the previous frame measured
+            limits = self.caps.limits
+            self.device.antialiasing, self._aa_choice = self.aa_auto.choose(limits.max_buffer_bytes if limits else None)
+            self.method.aa_samples = self.device.samples
+        k = self.device.antialiasing.supersample  # the frame renders at k times the size, box filtered down
         w, h = check_resolution(
             self.caps.limits,
             self.config.resolution[0] if width is None else width,
             self.config.resolution[1] if height is None else height,
+            supersample=k,
         )
         return scene, w, h
 
@@ -386,8 +403,9 @@ class Renderer:
     ) -> FrameContext:
         """Run the passes over one view of `scene` (`view`: its index and the call's number of views)."""
         index, views = view or (0, 1)
+        k = self.device.antialiasing.supersample  # the frame renders at k times the size, box filtered down
         frame = FrameContext(
-            self.device, self.method, self.raster, scene, w, h, draws, *self.camera_matrices(scene, w, h)
+            self.device, self.method, self.raster, scene, k * w, k * h, draws, *self.camera_matrices(scene, w, h)
         )
         frame.late_counters = not read_back
         frame.view_index, frame.view_count = index, views
@@ -401,6 +419,7 @@ class Renderer:
                 "insertion_path": self.caps.insertion_path,
                 "device": self.caps.gl_renderer,
                 "resolution": [w, h],
+                "render_resolution": [k * w, k * h],
                 "draws": len(draws),
                 "transparent_draws": len(frame.transparent_draws),
                 "passes": {},
@@ -459,6 +478,9 @@ class Renderer:
         if stats and not read_back:
             self._previous_timers[index] = timers
         frame.stats.section("memory").update(self.method.memory() if frame.transparent_draws else {})
+        if self._aa_choice is not None:  # why this frame's mode, and what the next frame decides from
+            frame.stats["antialiasing"]["auto"] = self._aa_choice
+            self.aa_auto.record(frame)
         declared = self.method.geometry_passes
         frame.stats.setdefault("geometry_passes", declared if frame.transparent_draws and declared is not None else 1)
         if kind == "gpu" and any(p["ms"] >= 4294.9 for p in frame.stats["passes"].values()):

@@ -1,4 +1,5 @@
-"""antialiasing.samples: coverage-aware A-buffer, per-sample resolve, refusals, supersampled reference."""
+"""antialiasing.samples: coverage-aware A-buffer, per-sample resolve, refusals, supersampled reference;
+antialiasing.supersample: the rendered frame box filtered down."""
 
 from __future__ import annotations
 
@@ -10,12 +11,13 @@ import numpy as np
 import pytest
 
 from guaca_py import Renderer
-from guaca_py.antialiasing import device_samples, method_refusal, with_samples
-from guaca_py.errors import ConfigError, UnsupportedMethodError
+from guaca_py.antialiasing import device_samples, method_refusal, with_samples, with_settings, with_supersample
+from guaca_py.errors import ConfigError, LimitError, UnsupportedMethodError
 from guaca_py.methods import method_class, method_ids
 from guaca_py.pipeline.config import load_pipeline, pipeline_from_text
 from guaca_py.reference import (
     edge_mask,
+    linear_pipeline,
     origin_camera,
     quad_mesh,
     reference_of,
@@ -277,7 +279,7 @@ def test_sample_counts_validated(gl_context):
     with pytest.raises(ConfigError, match="antialiasing"):
         pipeline_from_text("antialiasing: 4\npasses: [geometry, light_culling, composite]")
     cfg = pipeline_from_text("antialiasing: {samples: 2}\npasses: [geometry, light_culling, composite]")
-    assert cfg.antialiasing == {"samples": 2, "merge": "off", "merge_crease_deg": 15.0}
+    assert cfg.antialiasing == {"samples": 2, "supersample": 1, "auto": False}
     most = device_samples(gl_context)
     if most >= 8:
         pytest.skip("the device renders 8 samples")
@@ -324,8 +326,8 @@ def test_lit_default_pipeline_with_samples(renderer_factory):
 @pytest.mark.skipif(shutil.which("glslangValidator") is None, reason="glslangValidator (glslang-tools) not installed")
 @pytest.mark.parametrize("method", ["presort_lf_et", "presort_lf_merge2_et", "presort_cs_et", "post_merge16"])
 def test_gpu_variants_at_8_samples_pass_the_reference_compiler(aa_renderers, tmp_path, monkeypatch, method):
-    """The NVIDIA variants (64-bit insertion, ballots, interlock) at 8 samples, which this device cannot build;
-    the 64-bit list walk passes nearer records with plain loads."""
+    """The NVIDIA variants (64-bit insertion, ballots, interlock) at 8 samples, which this device cannot build
+    (the composite also supersampled 3x); the 64-bit list walk passes nearer records with plain loads."""
     from guaca_py.passes import composite
     from guaca_py.pipeline.drawlist import build_draw_list
     from guaca_py.renderer import method_settings
@@ -353,12 +355,81 @@ def test_gpu_variants_at_8_samples_pass_the_reference_compiler(aa_renderers, tmp
     cvars = dict(seen, method_extensions=m.resolve_extensions(), **m.template_vars())
     cvars.update(aa_samples=8, output_format="rgba32f")
     sources["comp"] = r.shaders.render("composite/shade_composite.comp.j2", **cvars)
+    cvars.update(supersample=3)
+    supersampled = r.shaders.render("composite/shade_composite.comp.j2", **cvars)
     assert "gl_SampleMaskIn" in sources["frag"] and "sampler2DMS" in sources["comp"]
+    assert "gua_composite_pixel(pix * 3 + ivec2(x, y))" in supersampled
     assert "uint64_t" in sources["frag"] or m.link_bytes == 4
     if method.startswith("presort_lf"):  # the sorted 64-bit walk: loads past nearer records
         assert "uint64_t seen = gua_links[slot];" in sources["frag"]
-    for stage, text in sources.items():
+    for stage, text in [*sources.items(), ("comp", supersampled)]:
         path = tmp_path / f"s.{stage}"
         path.write_text(text)
         run = subprocess.run(["glslangValidator", "-S", stage, str(path)], capture_output=True, text=True)
         assert run.returncode == 0, (stage, run.stdout[-2000:])
+
+
+# ----------------------------------------------------------------------------- supersample
+def box_filter(image: np.ndarray, k: int) -> np.ndarray:
+    """Mean of each k x k block of an (H, W, C) image."""
+    h, w, c = image.shape
+    return image.reshape(h // k, k, w // k, k, c).mean(axis=(1, 3))
+
+
+def test_supersample_is_the_box_filter_of_the_larger_frame(renderer_factory):
+    """supersample 2 equals the 2x frame averaged in 2x2 blocks (float tolerance); that frame is the float64 reference's."""
+    scene = random_quads(4)
+    big = renderer_factory(linear_pipeline()).render(scene, 96, 96)
+    r = renderer_factory(with_supersample(linear_pipeline(), 2))
+    frame = r.render(scene, 48, 48)
+    assert frame.linear.shape == (48, 48, 3) and frame.image.shape == (48, 48, 3)
+    np.testing.assert_allclose(frame.linear, box_filter(big.linear, 2), atol=1e-6)
+    ref, edges, _ = reference_of(scene, 96, 96)  # the rendered frame: exact off the edges
+    assert (np.abs(np.clip(big.linear, 0, 1) - ref).max(axis=2)[~edges] * 255).max() <= 2.0
+    assert frame.stats["antialiasing"] == {"samples": 1, "supersample": 2}
+    assert frame.stats["resolution"] == [48, 48] and frame.stats["render_resolution"] == [96, 96]
+    assert frame.stats["memory"]["gbuffer"] == 96 * 96 * 28  # the rendered frame's
+    assert big.stats["render_resolution"] == big.stats["resolution"] == [96, 96]
+
+
+def test_supersample_combines_with_samples(aa_renderers, renderer_factory):
+    """supersample 2 at 4 samples: the 2x frame at 4 samples, box filtered."""
+    scene = random_quads(5)
+    big = aa_renderers(4).render(scene, 64, 64)
+    frame = renderer_factory(with_settings(EXACT, {"samples": 4, "supersample": 2}, "test")).render(scene, 32, 32)
+    np.testing.assert_allclose(frame.linear, box_filter(big.linear, 2), atol=1e-6)
+    assert frame.stats["antialiasing"]["samples"] >= 4 and frame.stats["antialiasing"]["supersample"] == 2
+
+
+def test_supersample_two_at_least_halves_edge_error(aa_renderers, renderer_factory):
+    """Edge RMSE against the 8x8-supersampled exact frame falls >= 2x from 1 sample to supersample 2."""
+    size = 80
+    scene = random_quads(0)
+    ref = supersampled(aa_renderers(1), scene, size, size, 8)
+    tris, _, _ = scene_triangles(scene)
+    edges = edge_mask(tris, scene.camera, size, size, 0.5)
+    one = rmse_255(aa_renderers(1).render(scene, size, size).linear, ref.image, edges)
+    two = rmse_255(renderer_factory(with_supersample(EXACT, 2)).render(scene, size, size).linear, ref.image, edges)
+    assert one / two >= 2.0, (one, two)
+
+
+@pytest.mark.parametrize("method", method_ids())
+def test_every_method_takes_supersample(renderer_factory, method):
+    """Every method (A-buffers, peeling, counted, approximate) renders supersampled: the box filter of its 2x frame."""
+    scene = random_quads(6, n=5)
+    big = renderer_factory(linear_pipeline(), method=method).render(scene, 32, 32)
+    frame = renderer_factory(with_supersample(linear_pipeline(), 2), method=method).render(scene, 16, 16)
+    np.testing.assert_allclose(frame.linear, box_filter(big.linear, 2), atol=1e-6)
+
+
+def test_supersample_validated_and_held_to_the_device(gl_context, renderer_factory):
+    """Only 1/2/3/4; the rendered size must fit the device, and the error names antialiasing.supersample."""
+    with pytest.raises(ConfigError, match=r"antialiasing.*supersample.*must be one of 1, 2, 3, 4, got 5") as err:
+        pipeline_from_text("antialiasing: {supersample: 5}\npasses: [geometry, light_culling, composite]", "p.yaml")
+    assert err.value.line == 1
+    r = renderer_factory(with_supersample(EXACT, 4))
+    wide = r.caps.limits.max_framebuffer[0] // 4 + 1  # fits alone, not four times over
+    with pytest.raises(LimitError) as err:
+        r.render(random_quads(0, n=1), wide, 8)
+    assert err.value.key == "antialiasing.supersample"
+    assert f"renders {4 * wide}x32" in str(err.value) and "use antialiasing.supersample 3" in str(err.value)

@@ -154,6 +154,24 @@ def test_samples_option_overrides_the_pipeline(scene_file, tmp_path, capsys):
     assert "dfb" in err and "antialiasing.samples" in err
 
 
+def test_set_supersample_renders_the_larger_frame(scene_file, tmp_path, capsys):
+    """--set supersample=2 (no prefix: no method has that setting) renders 2x the size into an image of the size asked."""
+    from PIL import Image
+
+    out, stats = tmp_path / "o.png", tmp_path / "s.json"
+    args = ["render", str(scene_file), "--width", "24", "--height", "16", "--out", str(out), "--stats", str(stats)]
+    assert main([*args, "--set", "supersample=2"]) == 0
+    s = json.loads(stats.read_text())
+    assert s["antialiasing"]["supersample"] == 2 and s["render_resolution"] == [48, 32] and s["resolution"] == [24, 16]
+    assert Image.open(out).size == (24, 16)
+    assert main([*args, "--set", "antialiasing.supersample=3"]) == 0
+    assert json.loads(stats.read_text())["render_resolution"] == [72, 48]
+    capsys.readouterr()
+    assert main([*args, "--set", "supersample=5"]) == 2
+    err = capsys.readouterr().err
+    assert "--set supersample=5" in err and "antialiasing.supersample" in err and "1, 2, 3, 4" in err
+
+
 def test_a_reader_that_stops_early_ends_no_traceback(scene_file, tmp_path):
     """`guaca render ... | head -1`: the first line arrives, the files are written, no BrokenPipeError trace."""
     out, stats = tmp_path / "o.png", tmp_path / "s.json"

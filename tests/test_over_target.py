@@ -8,7 +8,7 @@ import pytest
 from conftest import quad_node, simple_scene
 
 from guaca_py import Renderer
-from guaca_py.antialiasing import with_samples
+from guaca_py.antialiasing import with_samples, with_settings
 from guaca_py.errors import GuacaError
 from guaca_py.gl_state import raw_gl
 from guaca_py.host_state import HostGLState
@@ -218,6 +218,26 @@ def test_multisampled_frame_over_the_host(host_ctx):
     assert err[inner].max() <= 3.0
     depth_err = np.abs(host.depth() - _expected_depth(scene))
     assert depth_err[inner].max() <= 2e-6
+    r.release()
+    host.release()
+
+
+@pytest.mark.parametrize("samples", [1, 4])
+def test_supersampled_frame_over_the_host(host_ctx, samples):
+    """antialiasing.supersample: the host's depth enters every rendered pixel of its output pixel; the nearest of
+    them (and of their samples) goes back; the composed colour is exact off the edges."""
+    scene = _scene()
+    host = HostFrame(host_ctx, "texture")
+    host.draw(scene)
+    r = Renderer(with_settings(load_pipeline("exact"), {"samples": samples, "supersample": 2}, "test"), ctx=host_ctx)
+    res = r.render(scene, W, H, target=host.fbo, over_target=True)
+    assert res.stats["render_resolution"] == [2 * W, 2 * H] and res.image.shape == (H, W, 3)
+    ref = simple_scene([_wall_node(), *scene.nodes], background=HOST_CLEAR)
+    tris, _, _ = scene_triangles(ref)
+    inner = ~edge_mask(tris, ref.camera, W, H, radius=1.0)
+    err = np.abs(host.colour().astype(np.float64) - _reference(scene) * 255.0).max(axis=2)
+    assert err[inner].max() <= 3.0
+    assert np.abs(host.depth() - _expected_depth(scene))[inner].max() <= 2e-6
     r.release()
     host.release()
 

@@ -96,7 +96,11 @@ _IMAGE_FORMATS = {"f1": "rgba8", "f2": "rgba16f", "f4": "rgba32f"}
 
 
 class FullscreenPass(Pass):
-    """A pass writing every pixel of an RGBA8/16F/32F target: a compute shader, or a full-screen triangle."""
+    """A pass writing every pixel of an RGBA8/16F/32F target: a compute shader, or a full-screen triangle.
+
+    Its target has the frame's output size: with supersampling the composite reads the rendered
+    (larger) frame and writes the output, and the passes after it work at the output size.
+    """
 
     template: ClassVar[str] = ""
     target_dtype: ClassVar[str] = "f1"
@@ -123,8 +127,8 @@ class FullscreenPass(Pass):
         return self.device.programs.program(stages, label=self.name)
 
     def target(self, frame: FrameContext):
-        """The output framebuffer, reallocated on resolution change."""
-        size = (frame.width, frame.height)
+        """The output framebuffer (the frame's output size), reallocated on resolution change."""
+        size = frame.output_size
         if self._target is None or self._target.size != size:
             self.release()
             tex = self.ctx.texture(size, 4, dtype=self.target_dtype)
@@ -142,8 +146,9 @@ class FullscreenPass(Pass):
         out = fbo.color_attachments[0]
         if self.compute:
             out.bind_to_image(Image.PASS_OUTPUT, read=False, write=True)
-            set_uniform(prog, "gua_size", (frame.width, frame.height))
-            prog.run(-(-frame.width // 8), -(-frame.height // 8), 1)
+            w, h = frame.output_size
+            set_uniform(prog, "gua_size", (w, h))
+            prog.run(-(-w // 8), -(-h // 8), 1)
             self.ctx.memory_barrier(IMAGE_OUTPUT_BARRIERS)  # later passes sample the result (or read it back)
             return out
         fbo.use()

@@ -61,6 +61,7 @@ class CompositePass(FullscreenPass):
             **(store.template_vars() if store else {}),
         )
         tvars["aa_samples"] = self.device.samples  # per-sample accumulators where > 1
+        tvars["supersample"] = frame.supersample  # rendered pixels averaged into each output pixel
         tvars["tone_map"] = self.epilogue is not None
         if self.epilogue is not None:
             tvars.update(self.epilogue.epilogue_vars())

@@ -85,7 +85,7 @@ class DebugLightCountPass(_HeatView):
     def program(self, frame):
         """Program variant for grid / no grid."""
         grid = frame.resources["light_grid"].grid is not None
-        tvars = {"light_grid": grid, "heat_anchors": len(HEAT_ANCHORS)}
+        tvars = {"light_grid": grid, "heat_anchors": len(HEAT_ANCHORS), "supersample": frame.supersample}
         return self.device.programs.program(
             {
                 "vertex_shader": ("composite/fullscreen.vert.j2", {}),
@@ -134,6 +134,7 @@ class DebugDepthComplexityPass(_HeatView):
             "method_extensions": "",
             "walk_limit": 1 << 16,
             "count_lists": 1,
+            "supersample": frame.supersample,
         }
         if store is not None:
             tvars.update(store.template_vars())

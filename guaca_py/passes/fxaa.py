@@ -30,6 +30,6 @@ class FxaaPass(FullscreenPass):
             return
         prog = self.program(frame)
         set_uniform(prog, "gua_edge_threshold", float(self.settings["edge_threshold"]))
-        set_uniform(prog, "gua_resolution", (float(frame.width), float(frame.height)))
+        set_uniform(prog, "gua_resolution", tuple(float(v) for v in frame.output_size))  # after supersampling
         tex = self.run_fullscreen(frame, prog, {"gua_input": src})
         frame.resources["ldr"] = tex

@@ -85,9 +85,8 @@ class GeometryPass(Pass):
         frame.stats["antialiasing"] = {
             "samples": self._samples,
             **({"asked": aa.asked} if aa.asked != self._samples else {}),
+            **({"supersample": aa.supersample} if aa.supersample > 1 else {}),
         }
-        if aa.merge:
-            frame.stats["antialiasing"].update(merge="adjacent", merge_crease_deg=aa.merge_crease_deg)
         frame.stats.memory("gbuffer", frame.pixel_count * (3 * 8 + 4) * self._samples)
         method = frame.method
         has_transparency = bool(frame.transparent_draws)
@@ -109,7 +108,10 @@ class GeometryPass(Pass):
         prog = self.device.programs.program(
             {
                 "vertex_shader": ("composite/fullscreen.vert.j2", {}),
-                "fragment_shader": ("gbuffer/host_layer.frag.j2", {"host_mark": HOST_MARK}),
+                "fragment_shader": (
+                    "gbuffer/host_layer.frag.j2",
+                    {"host_mark": HOST_MARK, "supersample": self.device.antialiasing.supersample},
+                ),
             },
             label="host_layer",
         )
@@ -124,12 +126,6 @@ class GeometryPass(Pass):
         if frame.transparent_draws and not method.geometry_in_composite:
             frame.rerender = method.finish(frame)
             frame.rerender = frame.raster.finish(frame) or frame.rerender
-        hardware = frame.stats.get("raster", {}).get("hardware_draws", 0)
-        if self.device.antialiasing.merge and hardware:  # the hardware path keeps a node per triangle and pixel
-            frame.stats.warn(
-                f"antialiasing.merge: adjacent applies to compute-rasterized draws; {hardware} transparent draws "
-                "went through the hardware rasterizer unmerged (transparency.raster: compute merges them)"
-            )
 
     def release(self) -> None:
         """Free the G-buffer."""

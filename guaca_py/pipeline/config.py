@@ -34,7 +34,8 @@ class PipelineConfig:
     transparency: dict
     passes: list[PassConfig] = field(default_factory=list)
     source: str = "<config>"
-    antialiasing: dict = field(default_factory=lambda: {"samples": 1})  # guaca_py/antialiasing.py
+    # guaca_py/antialiasing.py: every setting at its default unless the file gives it
+    antialiasing: dict = field(default_factory=lambda: {k: s.default for k, s in antialiasing.SETTINGS.items()})
 
     def pass_settings(self, name: str) -> dict | None:
         """Settings of the first pass called `name`, or None if absent."""

@@ -18,8 +18,7 @@ class Antialiasing:
     samples: int = 1  # samples the G-buffer and coverage masks hold (a device may round the asked count up)
     asked: int = 1  # antialiasing.samples as configured
     positions: tuple[tuple[float, float], ...] = ()  # where the device puts them (0..1, y up); () with one
-    merge: bool = False  # antialiasing.merge: adjacent, in effect (needs more than one sample)
-    merge_crease_deg: float = 15.0
+    supersample: int = 1  # antialiasing.supersample: rendered pixels per output pixel along each axis
 
 
 @dataclass

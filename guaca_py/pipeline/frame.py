@@ -27,6 +27,8 @@ class FrameContext:
 
     Passes, the method and the rasterizers receive it as their argument; it holds no Renderer.
     `raster` draws geometry (hardware or compute, per draw); the views are `view`/`projection`.
+    `width` x `height` is the rendered size: with antialiasing.supersample K, K times the output's
+    (`output_size`), which the composite writes and the post passes work at.
     """
 
     device: Device
@@ -73,8 +75,19 @@ class FrameContext:
 
     @property
     def pixel_count(self) -> int:
-        """Pixels in the frame."""
+        """Pixels in the rendered frame."""
         return self.width * self.height
+
+    @property
+    def supersample(self) -> int:
+        """Rendered pixels per output pixel along each axis (antialiasing.supersample; 1: off)."""
+        return self.device.antialiasing.supersample
+
+    @property
+    def output_size(self) -> tuple[int, int]:
+        """(width, height) of the frame's image: the rendered size divided by the supersampling factor."""
+        k = self.supersample
+        return self.width // k, self.height // k
 
     @property
     def camera_position(self) -> np.ndarray:

@@ -160,7 +160,6 @@ class ComputeRasterizer:
         self._materials: dict[int, tuple] = {}  # id(material) -> (material, ComputeMaterial)
         # GUACA_RASTER_STAGES=1: GPU time per stage in stats (reading it waits for the GPU: profiling only)
         self._stages = Timestamps() if env.raster_stages() else None
-        self._adjacency_bytes: dict[int, int] = {}  # antialiasing.merge: the neighbour buffers a frame used
 
     # ------------------------------------------------------------------ programs
     def _raster_vars(self) -> dict:
@@ -191,13 +190,10 @@ class ComputeRasterizer:
         cm = self._compute_material(mat)
         if cm.problem:
             raise ConfigError(cm.problem, mat.path, None, "transparency.raster")
-        aa = self.device.antialiasing
         fragment = dict(
             self._raster_vars(),
             **method.template_vars(),
             compute_raster=True,
-            aa_merge=aa.merge,  # antialiasing.merge: adjacent (setup stage)
-            aa_merge_crease_cos=f"{math.cos(math.radians(aa.merge_crease_deg)):.9f}",
             frag_xy="gua_frag_xy",
             tc_derivatives=cm.tc_derivatives,
             method_extensions=method.extensions(),
@@ -392,10 +388,6 @@ class ComputeRasterizer:
             vbo, ibo = device.meshes.buffers(d.mesh)
             vbo.bind_to_storage_buffer(Buffer.RASTER_MESH_VERTICES)
             ibo.bind_to_storage_buffer(Buffer.RASTER_INDICES)
-            if device.antialiasing.merge:  # each triangle's edge neighbours (raster/adjacency.py), built once per mesh
-                adjacency = device.meshes.adjacency(d.mesh, device.caps.limits)
-                adjacency.bind_to_storage_buffer(Buffer.RASTER_ADJACENCY)
-                self._adjacency_bytes[adjacency.glo] = adjacency.size
             for prog in kernels:
                 if prog.glo in ready:
                     continue
@@ -465,9 +457,6 @@ class ComputeRasterizer:
             spans = self._stages.spans_ms()
             frame.stats["raster"]["compute"]["stage_ms"] = {k: round(v, 4) for k, v in spans.items()}
         frame.stats.section("memory").update(self.memory(c["large_peak"], c["jobs_peak"]))
-        if self._adjacency_bytes:  # antialiasing.merge: the edge neighbours of this frame's meshes
-            frame.stats["memory"]["raster_adjacency"] = sum(self._adjacency_bytes.values())
-            self._adjacency_bytes.clear()
         dropped = c["large_dropped"] or c["jobs_dropped"]
         if dropped and late:  # grow for the next frame; this one is not rendered again
             self._grow(c)

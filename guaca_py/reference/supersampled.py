@@ -92,15 +92,12 @@ def _block_mean_spread(image: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarra
     return acc / (k * k), (hi.astype(np.float64) - lo).max(axis=-1)
 
 
-def linear_pipeline(
-    samples: int = 1, threshold: float = 0.999, light_culling: str = "auto", merge: str = "off"
-) -> PipelineConfig:
-    """The accuracy benchmarks' pipeline: pipelines/exact with culled lights, linear output, `samples` per pixel
-    (`merge`: antialiasing.merge)."""
+def linear_pipeline(samples: int = 1, threshold: float = 0.999, light_culling: str = "auto") -> PipelineConfig:
+    """The accuracy benchmarks' pipeline: pipelines/exact with culled lights, linear output, `samples` per pixel."""
     return pipeline_from_text(
         f"name: linear_aa{samples}\n"
         f"transparency: {{method: presort_lf_et, threshold: {threshold}, budget_mb: auto}}\n"
-        f"antialiasing: {{samples: {samples}, merge: {merge}}}\n"
+        f"antialiasing: {{samples: {samples}}}\n"
         f"passes: [geometry, {{light_culling: {{mode: {light_culling}}}}}, composite]\n",
         f"<linear pipeline, {samples} samples>",
     )

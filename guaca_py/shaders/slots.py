@@ -100,9 +100,6 @@ class Buffer(Kind):
     MULTILAYER_SLOTS = Slot(0, "method", "multi-layer peeling per-pixel slots: peeling/multilayer_layout.glsl.j2")
     MULTILAYER_NODES = Slot(1, "method", "multi-layer peeling node pool: peeling/multilayer_layout.glsl.j2")
     MULTILAYER_DROPPED = Slot(5, "method", "multi-layer peeling dropped counts: peeling/multilayer_layout.glsl.j2")
-    RASTER_ADJACENCY = Slot(
-        7, "raster", "each triangle's edge neighbours (antialiasing.merge): raster/triangle.glsl.j2"
-    )
     RASTER_VERTICES = Slot(8, "raster", "transformed vertex records: raster/vertex.comp.j2 writes, later stages read")
     RASTER_MESH_VERTICES = Slot(9, "raster", "the mesh's vertex buffer, vertex stage only: raster/vertex.comp.j2")
     RASTER_ORDER_KEYS = Slot(9, "raster", "the order stage's sort keys, after the vertex stage: raster/order.comp.j2")

@@ -14,6 +14,7 @@ import pytest
 from conftest import quad_node, simple_scene, unit_quad
 
 from guaca_py import ConfigError, DeviceError, pipeline_from_text
+from guaca_py.antialiasing import with_supersample
 from guaca_py.passes.debug_views import heat_color, legend_rows
 from guaca_py.passes.light_grid_cpu import compare_grids, exact_tile_lights
 from guaca_py.scene.graph import Camera, Light, MaterialInstance, Node, Scene, Transform
@@ -372,6 +373,28 @@ def test_debug_light_count_matches_grid(renderer_factory):
     assert np.abs(got - want).max() <= 1.0 / 255 + 1e-6
     assert frame.stats["debug_views"]["debug_light_count"]["tile_max"] == counts.max()
     assert len(np.unique(counts)) > 3
+
+
+def test_debug_views_at_the_output_size_when_supersampled(renderer_factory):
+    """antialiasing.supersample 2: each view is drawn at the output size (legend included) from the rendered frame:
+    an output pixel shows the tile of its first rendered pixel, and the most fragments of its rendered pixels."""
+    lights = with_supersample(
+        pipeline("fallback", tile=8, extra="  - debug_light_count: {max: 24, legend: false}\n"), 2
+    )
+    r = renderer_factory(lights)
+    frame = r.render(lit_scene(), 32, 32)
+    counts = r.pass_named("light_culling").grid_bits().sum(axis=0)  # tiles of the 64x64 rendered frame
+    want = np.array([[heat_color(c, 24) for c in row] for row in counts])
+    got = frame.image[::-1].astype(float)[2::4, 2::4] / 255.0  # a tile is 4 output pixels wide
+    assert frame.image.shape == (32, 32, 3) and np.abs(got - want).max() <= 1.0 / 255 + 1e-6
+    complexity = with_supersample(pipeline("fallback", extra="  - debug_depth_complexity: {max: 8}\n"), 2)
+    frame = renderer_factory(complexity).render(_complexity_scene(), 48, 48)
+    img = frame.image.astype(float) / 255
+    assert frame.image.shape == (48, 48, 3)
+    assert np.abs(img[22:26, 22:26] - heat_color(5, 8)).max() <= 1.0 / 255 + 1e-6
+    assert np.abs(img[1, 1] - heat_color(0, 8)).max() <= 1.0 / 255 + 1e-6
+    assert (frame.image[48 - legend_rows(48) :] == 255).all(axis=-1).sum() > 10  # the legend's ticks and digits
+    assert frame.stats["debug_views"]["debug_depth_complexity"]["pixel_max"] == 5
 
 
 def test_debug_light_count_with_culling_off(renderer_factory):

@@ -494,21 +494,20 @@ def test_command_line_set_and_info(capsys, tmp_path):
 
 
 @pytest.mark.skipif(shutil.which("glslangValidator") is None, reason="glslangValidator (glslang-tools) not installed")
-@pytest.mark.parametrize("samples, merge", [(1, "off"), (4, "off"), (4, "adjacent")])
+@pytest.mark.parametrize("samples", [1, 4])
 @pytest.mark.parametrize("method", ["presort_lf_et", "presort_lf_merge2_et"])
-def test_gpu_variants_pass_the_reference_compiler(renderer_factory, tmp_path, method, samples, merge):
+def test_gpu_variants_pass_the_reference_compiler(renderer_factory, tmp_path, method, samples):
     # the NVIDIA variants (64-bit insertion, subgroup ballots) of every kernel, with every built-in
     # material made transparent, at one and at four samples (the list walk differs per kernel and
-    # sample count) and with antialiasing.merge, through Khronos' reference compiler (this device
-    # cannot compile them)
+    # sample count), through Khronos' reference compiler (this device cannot compile them)
     import subprocess
 
-    from guaca_py.antialiasing import with_settings
+    from guaca_py.antialiasing import with_samples
     from guaca_py.methods import method_class
     from guaca_py.pipeline.drawlist import build_draw_list
     from guaca_py.renderer import method_settings
 
-    pipeline = with_settings(load_pipeline("exact"), {"samples": samples, "merge": merge}, "test")
+    pipeline = with_samples(load_pipeline("exact"), samples, "test")
     r = renderer_factory(pipeline, method=method, method_overrides={"raster": "compute"})
     extra = {"shader_ballot": True} if hasattr(r.caps, "shader_ballot") else {}
     caps = dataclasses.replace(r.caps, atomic_int64=True, **extra)
@@ -537,14 +536,11 @@ def test_gpu_variants_pass_the_reference_compiler(renderer_factory, tmp_path, me
         *(("raster/order.comp.j2", {**cr._raster_vars(), "order_mode": m}) for m in (0, 1, 3)),
         ("raster/order_scan.comp.j2", cr._raster_vars()),
     ]
-    merging = 0
     for i, (template, variables) in enumerate(stages):
         path = tmp_path / f"k{i}.comp"
         path.write_text(r.shaders.render(template, **variables))
-        merging += "gua_neighbour_covers(c1, c2" in path.read_text()
         run = subprocess.run(["glslangValidator", "-S", "comp", str(path)], capture_output=True, text=True)
         assert run.returncode == 0, (template, run.stdout[-2000:])
-    assert merging == (len(mats) if merge == "adjacent" else 0)  # the setup kernel of each material merges
 
 
 def test_a_triangles_fragments_get_neighbouring_nodes(renderer_factory):

@@ -13,7 +13,7 @@ import pytest
 from conftest import unit_quad
 
 from guaca_py import antialiasing
-from guaca_py.antialiasing import with_samples, with_settings
+from guaca_py.antialiasing import with_samples
 from guaca_py.methods import method_ids
 from guaca_py.pipeline.config import load_pipeline, pipeline_from_text
 from guaca_py.resources import builtin_dir
@@ -174,17 +174,16 @@ def _scene():
 
 def _configs():
     """(label, pipeline, method, overrides): every method with light culling, tone mapping and FXAA;
-    multisampling, the compute rasterizer and its triangle merge on two A-buffer methods each (their
+    multisampling and the compute rasterizer (also multisampled) on two A-buffer methods each (their
     programs are alike across the family; all of them would triple the first run's compiling, about
     14 s on llvmpipe with an empty shader cache); the light grid built the other way; the debug views."""
     default, exact = load_pipeline("default"), load_pipeline("exact")
     text = Path(default.source).read_text()
     views = text.replace("  - fxaa: {}\n", "  - debug_light_count: {}\n  - debug_depth_complexity: {}\n")
-    merge = with_settings(exact, {"samples": 4, "merge": "adjacent"}, "test")
     out = [(mid, default, mid, {}) for mid in method_ids()]
     out += [(f"{m} 4x", with_samples(exact, 4), m, {}) for m in ("presort_lf", "post_merge16")]
     out += [("presort_cs compute", exact, "presort_cs", {"raster": "compute"})]
-    out += [("presort_lf compute 4x merge", merge, "presort_lf_merge2_et", {"raster": "compute"})]
+    out += [("presort_lf_merge2_et compute 4x", with_samples(exact, 4), "presort_lf_merge2_et", {"raster": "compute"})]
     out.append(("debug views", pipeline_from_text(views, default.source), "presort_lf", {}))
     # composed over a host's framebuffer (render(..., over_target=True)): the host's depth in and out
     out += [("over target", default, "presort_lf_et", {}), ("over target 4x", with_samples(exact, 4), "presort_lf", {})]

@@ -1,0 +1,166 @@
+"""`antialiasing: auto`: 4 coverage samples or supersample 2, chosen per frame from the previous frame.
+
+The first frame renders with 4 coverage samples. Every frame records what the next one decides
+from: the mean projected area of its transparent triangles in output pixels (the sampled estimate
+`raster: auto` uses, guaca_py/raster/choice.py) and its stored fragments. The cost model, relative
+to the same frame at 1 sample (docs/antialiasing.md, "antialiasing: auto"):
+
+* 4 coverage samples: a fixed part (multisampled G-buffer, per-sample composite) plus the edge
+  fragments. A triangle of area `a` px² makes about `1 + EDGE / sqrt(a)` times its 1-sample
+  fragments (every pixel that any sample of it covers), each walking lists grown alike:
+  `COVERAGE_FIXED + COVERAGE_EDGE * EDGE / sqrt(a)`, so small triangles make it expensive.
+* supersample 2: four times the pixels and fragments, but not the per-triangle work (vertex,
+  setup): `1 + 3 * a / (a + TRIANGLE_FRAGMENTS)`, the share of the frame that grows with the
+  fragments being `a / (a + TRIANGLE_FRAGMENTS)` (a triangle of area `a` makes about `a` fragments).
+
+Supersample 2 is chosen where its estimate is lower (by HYSTERESIS when the previous frame ran
+the other mode, so a camera near the crossing does not switch every frame) and where the 1-sample
+fragments, four times over, fit the device's storage rule; 4 samples otherwise, and always for a
+method that cannot carry coverage masks (supersample 2 then) or a frame without transparent draws.
+"""
+
+from __future__ import annotations
+
+import math
+
+from .pipeline.device import Antialiasing
+from .raster.choice import mean_projected_area
+
+# The constants come from the H100 at 1024² (presort_lf_et, raster: auto; benchmarks/results/h100/
+# aa_cost/ and accuracy_scenes/; docs/antialiasing.md): 4 samples against 1 stored 3.08x the fragments
+# on the dragons (mean triangle area 0.31 px²), 1.13x / 1.11x on Sponza v1 / v2 (92 / 158 px²), 1.79x /
+# 1.15x on hairball_v1 / v2 (5.2 / 34.6 px²); their frames took 3.19x, 1.57x, 1.51x, 2.64x and 1.92x;
+# the dragons' 2048² frame (supersample 2's) took 2.10x the 1024² one. To be recalibrated with the
+# chart of benchmarks/accuracy_scenes.py --aa-chart.
+EDGE = 1.25  # fragment growth at 4 samples: 1 + EDGE / sqrt(area px²) (fit: 1.15 dragons ... 1.38 Sponza v2)
+COVERAGE_FIXED = 1.46  # the 4-sample frame's cost where the triangles are large (Sponza: 1.51-1.57x)
+COVERAGE_EDGE = 0.83  # cost per unit of extra fragment growth (the dragons: 3.19x at 3.08x the fragments)
+TRIANGLE_FRAGMENTS = 0.48  # a triangle's fixed work in fragments' worth (the dragons' 2048² frame: 2.10x)
+HYSTERESIS = 0.1  # leave the previous frame's mode only for an estimate this much lower
+SUPERSAMPLE = 2
+COVERAGE_SAMPLES = 4
+NODE_BYTES = 40  # an A-buffer node (payload and 64-bit link), for the storage check where the frame names none
+
+
+def coverage_cost(area_px: float) -> float:
+    """Estimated cost of 4 coverage samples, relative to 1 sample, for triangles of mean area `area_px` (px²)."""
+    return COVERAGE_FIXED + COVERAGE_EDGE * EDGE / math.sqrt(max(area_px, 1e-6))
+
+
+def supersample_cost(area_px: float) -> float:
+    """Estimated cost of supersample 2, relative to 1 sample, for triangles of mean area `area_px` (output px²)."""
+    share = area_px / (area_px + TRIANGLE_FRAGMENTS)  # the part of the frame that grows with the fragments
+    return 1.0 + (SUPERSAMPLE**2 - 1) * share
+
+
+def label(aa: Antialiasing) -> str:
+    """How a mode is named in the stats: 'samples 4' or 'supersample 2'."""
+    return f"supersample {aa.supersample}" if aa.supersample > 1 else f"samples {aa.asked}"
+
+
+def choose(
+    measured: dict | None, previous: str | None, coverage_possible: str | None, max_buffer_bytes: int | None
+) -> tuple[str, str]:
+    """('samples' or 'supersample', why) for a frame, from the previous frame's measurements.
+
+    `measured`: {'mean_triangle_area_px', 'fragments_1x', 'node_bytes'} or None before the first frame;
+    `previous`: the mode the previous frame ran; `coverage_possible`: None, or why 4 samples cannot run.
+    """
+    if coverage_possible is not None:
+        return "supersample", coverage_possible
+    if measured is None:
+        return "samples", "the first frame renders with 4 samples"
+    if measured.get("transparent_draws", 1) == 0:
+        return "samples", "no transparent draws: 4 samples cost only the multisampled G-buffer"
+    area = measured["mean_triangle_area_px"]
+    cov, ss = coverage_cost(area), supersample_cost(area)
+    costs = f"mean triangle area {area:.3g} px²: estimated cost x{cov:.2f} with 4 samples, x{ss:.2f} with supersample 2"
+    need = SUPERSAMPLE**2 * measured["fragments_1x"] * measured.get("node_bytes", NODE_BYTES)
+    if max_buffer_bytes is not None and need > max_buffer_bytes:
+        return (
+            "samples",
+            f"{costs}; supersample 2 would store {need / 2**20:.0f} MiB of fragments, over the device's buffer",
+        )
+    margin = 1.0 - HYSTERESIS if previous == "samples" else 1.0 + HYSTERESIS
+    if ss < cov * margin:
+        return "supersample", costs
+    return "samples", costs
+
+
+def fragment_growth(aa: Antialiasing, area_px: float) -> float:
+    """Fragments of a frame in mode `aa` per fragment of the same frame at 1 sample (the model's estimate)."""
+    if aa.supersample > 1:
+        return float(aa.supersample**2)
+    if aa.samples > 1:
+        return min(float(aa.samples), 1.0 + EDGE / math.sqrt(max(area_px, 1e-6)))
+    return 1.0
+
+
+def measure(frame) -> dict:
+    """What the next frame decides from: the transparent triangles' mean projected area in output pixels
+    (weighted by triangle count) and the stored fragments as at 1 sample (divided by the mode's growth)."""
+    w, h = frame.output_size
+    vp = frame.projection @ frame.view
+    total = weight = 0.0
+    for d in frame.transparent_draws:
+        area = mean_projected_area(d.mesh, d.world, vp, w, h)
+        if area > 0:  # on screen
+            total += area * d.mesh.triangle_count
+            weight += d.mesh.triangle_count
+    area = total / weight if weight else 0.0
+    one = frame.stats.get("fragments", {}).get("stored", 0) / fragment_growth(frame.device.antialiasing, area)
+    out = {
+        "transparent_draws": len(frame.transparent_draws),
+        "mean_triangle_area_px": round(area, 4),
+        "fragments_1x": int(one),
+        "fragments_per_pixel_1x": round(one / (w * h), 3),
+    }
+    node = frame.stats.get("memory", {}).get("abuffer_node_bytes")
+    if node:
+        out["node_bytes"] = int(node)
+    return out
+
+
+class AutoAntialiasing:
+    """Per frame, which of two modes the Renderer's device renders with, and the report of why."""
+
+    def __init__(self, coverage: Antialiasing | None, why_not_coverage: str | None = None):
+        self.coverage = coverage  # 4 samples as the device renders them; None where it has no multisampling
+        self.supersampled = Antialiasing(supersample=SUPERSAMPLE)
+        self.why_not_coverage = why_not_coverage if coverage is not None else "the device renders 1 sample per pixel"
+        self.measured: dict | None = None  # the previous frame's
+        self.mode: str | None = None  # the previous frame's: 'samples' or 'supersample'
+
+    def method_changed(self, method_cls) -> None:
+        """The transparency method changed: 4 samples only where it carries coverage masks."""
+        if self.coverage is None:
+            return
+        self.why_not_coverage = (
+            None
+            if method_cls.supports_antialiasing
+            else f"method '{method_cls.id}' carries no coverage masks ({method_cls.antialiasing_refusal})"
+        )
+
+    def choose(self, max_buffer_bytes: int | None) -> tuple[Antialiasing, dict]:
+        """The mode of the next frame and its report for `stats['antialiasing']['auto']`."""
+        mode, why = choose(self.measured, self.mode, self.why_not_coverage, max_buffer_bytes)
+        self.mode = mode
+        aa = self.coverage if mode == "samples" else self.supersampled
+        report = {"chose": label(aa), "why": why}
+        if self.measured is not None:
+            report["previous_frame"] = dict(self.measured)
+        return aa, report
+
+    def record(self, frame) -> None:
+        """Measure the frame just rendered, for the next one."""
+        self.measured = measure(frame)
+
+
+__all__ = [
+    "AutoAntialiasing",
+    "choose",
+    "coverage_cost",
+    "supersample_cost",
+    "measure",
+    "fragment_growth",
+]
