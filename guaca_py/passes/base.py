@@ -137,8 +137,13 @@ class FullscreenPass(Pass):
             self._target = self.ctx.framebuffer(color_attachments=[tex])
         return self._target
 
-    def run_fullscreen(self, frame: FrameContext, prog, inputs: dict) -> moderngl.Texture:
-        """Bind input textures to units, write every pixel of the target, return the output texture."""
+    def run_fullscreen(
+        self, frame: FrameContext, prog, inputs: dict, scale: int = 1, edge: int = 8
+    ) -> moderngl.Texture:
+        """Bind input textures to units, write every pixel of the target, return the output texture.
+
+        A compute pass runs `scale` x `scale` invocations per output pixel in `edge` x `edge` workgroups.
+        """
         fbo = self.target(frame)
         for unit, (uname, tex) in enumerate(inputs.items(), start=Texture.PASS_INPUTS):
             tex.use(location=unit)
@@ -148,7 +153,7 @@ class FullscreenPass(Pass):
             out.bind_to_image(Image.PASS_OUTPUT, read=False, write=True)
             w, h = frame.output_size
             set_uniform(prog, "gua_size", (w, h))
-            prog.run(-(-w // 8), -(-h // 8), 1)
+            prog.run(-(-w * scale // edge), -(-h * scale // edge), 1)
             self.ctx.memory_barrier(IMAGE_OUTPUT_BARRIERS)  # later passes sample the result (or read it back)
             return out
         fbo.use()

@@ -11,6 +11,11 @@ from ..shaders import set_uniform
 from .base import FullscreenPass
 
 
+def composite_edge(supersample: int) -> int:
+    """Workgroup edge of the composite: 8, or the multiple of `supersample` from 8 up (whole blocks per group)."""
+    return supersample * -(-8 // supersample)
+
+
 @register("pass")
 class CompositePass(FullscreenPass):
     """Full-screen pass producing linear HDR color ('hdr').
@@ -62,6 +67,7 @@ class CompositePass(FullscreenPass):
         )
         tvars["aa_samples"] = self.device.samples  # per-sample accumulators where > 1
         tvars["supersample"] = frame.supersample  # rendered pixels averaged into each output pixel
+        tvars["local_edge"] = composite_edge(frame.supersample)
         tvars["tone_map"] = self.epilogue is not None
         if self.epilogue is not None:
             tvars.update(self.epilogue.epilogue_vars())
@@ -92,6 +98,8 @@ class CompositePass(FullscreenPass):
                 "gbuf_material": g.material,
                 "gbuf_depth": g.depth,
             },
+            scale=frame.supersample,  # an invocation per rendered pixel
+            edge=composite_edge(frame.supersample),
         )
         if store is not None:
             store.after_composite(frame)
