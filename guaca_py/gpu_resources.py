@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ConfigError
+from .yaml_source import file_problem
 
 _BUILTIN_TEXELS = {"white": (255, 255, 255, 255), "black": (0, 0, 0, 255), "normal": (128, 128, 255, 255)}
 #: an entry unused for this many frames is freed (a few, so alternating scenes do not thrash)
@@ -153,13 +154,12 @@ class TextureCache(_FrameCache):
         elif name in _BUILTIN_TEXELS:
             tex = self.ctx.texture((1, 1), 4, bytes(_BUILTIN_TEXELS[name]))
         else:
-            from .scene.mesh_io import file_problem
             from .scene.texture import MAX_TEXTURE_SIDE, decode_image
 
             path = Path(name) if Path(name).is_absolute() or base is None else base / name
             problem = file_problem(path)
             if problem is not None:
-                raise ConfigError(f"texture {problem}: {path}", hint="paths in scenes resolve against the scene file")
+                raise ConfigError(f"texture {problem}", path, hint="paths in scenes resolve against the scene file")
             device = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
             limit = "the device's largest" if device <= MAX_TEXTURE_SIDE else "the largest read"
             try:

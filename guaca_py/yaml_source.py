@@ -380,6 +380,43 @@ def _size_text(n: int) -> str:
     return f"{n // 2**20} MiB" if n >= 2**20 and n % 2**20 == 0 else f"{n // 1024} KiB" if n % 1024 == 0 else f"{n} B"
 
 
+def kind_problem(mode: int) -> str | None:
+    """What a file of stat mode `mode` is when it is no regular file ('is a FIFO, not a regular file'), else None."""
+    if stat.S_ISREG(mode):
+        return None
+    if stat.S_ISDIR(mode):
+        return "is a directory"
+    if stat.S_ISFIFO(mode):
+        return "is a FIFO, not a regular file"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "is a device, not a regular file"
+    return "is not a regular file"
+
+
+def file_problem(path: str | Path) -> str | None:
+    """Why `path` cannot be read as a regular file (missing, a FIFO, a device, a folder, a NUL, a loop), or None.
+
+    Checked with os.stat before any open: opening a FIFO blocks until a writer comes, forever.
+    """
+    text = os.fspath(path)
+    if "\0" in text:
+        return "contains a NUL character"
+    if not text:
+        return "is empty"
+    try:
+        mode = os.stat(text).st_mode
+    except FileNotFoundError:
+        return "not found"
+    except OSError as exc:  # a symlink loop (ELOOP), a name too long, a folder without permission
+        return exc.strerror.lower() if exc.strerror else str(exc)
+    except ValueError as exc:
+        return str(exc)
+    problem = kind_problem(mode)
+    if problem is None and not os.access(text, os.R_OK):
+        return "is not readable (permission denied)"
+    return problem
+
+
 def read_bytes(
     path: str | Path,
     max_bytes: int | None = None,
@@ -413,9 +450,9 @@ def read_bytes(
         raise refuse(f"cannot open {what} {p}: {exc.strerror or exc}", "check the path") from None
     try:
         info = os.fstat(fd)
-        if not stat.S_ISREG(info.st_mode):
-            kind = "a directory" if stat.S_ISDIR(info.st_mode) else "not a regular file (a FIFO, device or socket)"
-            raise refuse(f"{what} {p} is {kind}", f"name a regular {what}")
+        problem = kind_problem(info.st_mode)
+        if problem is not None:
+            raise refuse(f"{what} {p} {problem}", f"name a regular {what}")
         if max_bytes is not None and info.st_size > max_bytes:
             raise refuse(
                 f"{what} {p} holds {info.st_size:,} bytes, more than {_size_text(max_bytes)}",

@@ -300,6 +300,16 @@ def test_an_output_never_replaces_an_input_or_a_special_file(textured, outputs, 
     assert snapshot(textured) == before and "rendered" not in r.stdout
 
 
+def test_a_fifo_named_as_the_scene_is_refused_by_what_it_is(textured):
+    """Exit 2 at once (never blocking on the FIFO) with one line naming it: not 'not found'."""
+    import os
+
+    os.mkfifo(textured / "pipe.yaml")
+    r = guaca("render", "pipe.yaml", "--out", "o.png", cwd=textured, timeout=60)
+    one_error_line(r, "pipe.yaml: scene file is a FIFO, not a regular file")
+    assert not (textured / "o.png").exists()
+
+
 def test_outputs_keep_modes_and_write_through_links(textured):
     """A replaced image keeps its mode; --stats through a link replaces the link's target, the link stays."""
     import os

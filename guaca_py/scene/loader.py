@@ -77,7 +77,7 @@ import yaml
 
 from ..errors import ConfigError
 from ..numeric import Range, number_hint
-from ..yaml_source import compose, nesting_error, read_text
+from ..yaml_source import compose, file_problem, nesting_error, read_text
 from .graph import LIGHT_TYPES, MAX_WORLD, Camera, Light, MaterialInstance, MeshData, Node, Scene, Transform
 from .mesh_io import load_mesh_file
 from .nodes import _scaled_unit
@@ -473,11 +473,14 @@ class _Reader:
         text = node.value
         if text.lower().endswith(TEXTURE_SUFFIXES):
             path = self.path(at)
-            if not path.is_file():
+            problem = file_problem(path)  # a FIFO or a device said so, not "not found" (and never opened)
+            if problem is not None:
                 raise self.error(
                     at,
-                    f"texture file not found: {path}",
-                    "relative paths are resolved against the scene file's directory",
+                    f"texture file {problem}: {path}",
+                    "relative paths are resolved against the scene file's directory"
+                    if problem == "not found"
+                    else "name a regular image file",
                 )
             return str(path)
         return text
@@ -514,8 +517,11 @@ def load(path: str | Path) -> Scene:
     from .files import load_model, model_kind
 
     p = Path(path)
-    if not p.is_file():
-        raise ConfigError(f"scene file not found: {p}", p, hint="check the path")
+    problem = file_problem(p)  # a FIFO, a device or a folder is named as what it is, and never opened
+    if problem is not None:
+        raise ConfigError(
+            f"scene file {problem}: {p}", p, hint="check the path" if problem == "not found" else "name a regular file"
+        )
     if model_kind(p) != "yaml":
         return load_model(p)
     scene = load_scene_text(read_text(p), str(p), p.parent)

@@ -5,13 +5,13 @@ from __future__ import annotations
 import io
 import os
 import re
-import stat
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import ConfigError
+from ..yaml_source import file_problem
 from .nodes import MeshData
 from .texture import decode_image
 
@@ -27,35 +27,6 @@ def file_error(
         return ConfigError(reason, file_for_errors if file_for_errors is not None else p, line, key, hint)
 
     return fail
-
-
-def file_problem(path: str | Path) -> str | None:
-    """Why `path` cannot be read as a regular file (missing, a FIFO, a device, a folder, a NUL, a loop), or None.
-
-    Checked with os.stat before any open: opening a FIFO blocks until a writer comes, forever.
-    """
-    text = os.fspath(path)
-    if "\0" in text:
-        return "contains a NUL character"
-    if not text:
-        return "is empty"
-    try:
-        mode = os.stat(text).st_mode
-    except FileNotFoundError:
-        return "not found"
-    except OSError as exc:  # a symlink loop (ELOOP), a name too long, a folder without permission
-        return exc.strerror.lower() if exc.strerror else str(exc)
-    except ValueError as exc:
-        return str(exc)
-    if stat.S_ISREG(mode):
-        return None if os.access(text, os.R_OK) else "is not readable (permission denied)"
-    if stat.S_ISDIR(mode):
-        return "is a directory"
-    if stat.S_ISFIFO(mode):
-        return "is a FIFO, not a regular file"
-    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
-        return "is a device, not a regular file"
-    return "is not a regular file"
 
 
 def check_file(path: str | Path, fail: Callable[[str, str], ConfigError], what: str) -> None:

@@ -390,7 +390,7 @@ def test_valid_binary_stl_loads(tmp_path):
 
 
 def test_file_problem_names_fifos_nul_and_devices(tmp_path):
-    from guaca_py.scene.mesh_io import file_problem
+    from guaca_py.yaml_source import file_problem
 
     os.mkfifo(tmp_path / "pipe.png")
     assert file_problem(tmp_path / "pipe.png") == "is a FIFO, not a regular file"

@@ -339,6 +339,61 @@ def test_missing_scene_file():
         load_scene("/definitely/not/here.yaml")
 
 
+def _special(tmp_path: Path, kind: str, name: str) -> Path:
+    """A FIFO, a folder or a device (a link to /dev/null) under `name`: no regular file, never to be opened."""
+    import os
+
+    p = tmp_path / name
+    if kind == "device":
+        p.symlink_to(os.devnull)
+    else:
+        os.mkfifo(p) if kind == "fifo" else p.mkdir()
+    return p
+
+
+SPECIAL = {"fifo": "is a FIFO, not a regular file", "directory": "is a directory", "device": "is a device, not a regular file"}
+
+
+@pytest.mark.parametrize("kind", SPECIAL)
+def test_a_scene_file_that_is_no_regular_file_says_what_it_is(tmp_path, kind):
+    """A FIFO given as the scene is refused by what it is (opening it would wait for a writer forever)."""
+    p = _special(tmp_path, kind, "scene.yaml")
+    with pytest.raises(ConfigError) as err:
+        load_scene(p)
+    assert f"scene file {SPECIAL[kind]}" in str(err.value) and "not found" not in str(err.value)
+    assert Path(err.value.file) == p
+
+
+@pytest.mark.parametrize("kind", SPECIAL)
+def test_a_texture_that_is_no_regular_file_cites_the_scene_line(tmp_path, kind):
+    texture = _special(tmp_path, kind, "tex.png")
+    scene_path = _scene_file(
+        tmp_path,
+        f"""
+        nodes:
+          - mesh: {{primitive: box}}
+            material: {{description: pbr_textured, uniforms: {{albedo_map: {texture}}}}}
+    """,
+    )
+    with pytest.raises(ConfigError) as err:
+        load_scene(scene_path)
+    e = err.value
+    assert f"texture file {SPECIAL[kind]}: {texture.resolve()}" in str(e) and "not found" not in str(e)
+    assert Path(e.file) == scene_path and e.line == 3 and e.key == "nodes[0].material.uniforms.albedo_map"
+
+
+@pytest.mark.parametrize("suffix,what", [(".obj", "mesh file"), (".glb", "glTF file")])
+@pytest.mark.parametrize("kind", SPECIAL)
+def test_a_mesh_that_is_no_regular_file_cites_the_scene_line(tmp_path, kind, suffix, what):
+    mesh = _special(tmp_path, kind, "model" + suffix)
+    scene_path = _scene_file(tmp_path, f"nodes:\n  - name: a\n    mesh: {{file: '{mesh}'}}\n")
+    with pytest.raises(ConfigError) as err:
+        load_scene(scene_path)
+    e = err.value
+    assert f"{what} {SPECIAL[kind]}" in str(e) and str(mesh.resolve()) in str(e)
+    assert Path(e.file) == scene_path and e.line == 3 and e.key == "nodes[0].mesh.file"
+
+
 # ---- mesh files ------------------------------------------------------------------------------
 
 
