@@ -304,9 +304,9 @@ def test_a_fifo_named_as_the_scene_is_refused_by_what_it_is(textured):
     """Exit 2 at once (never blocking on the FIFO) with one line naming it: not 'not found'."""
     import os
 
-    os.mkfifo(textured / "pipe.yaml")
-    r = guaca("render", "pipe.yaml", "--out", "o.png", cwd=textured, timeout=60)
-    one_error_line(r, "pipe.yaml: scene file is a FIFO, not a regular file")
+    os.mkfifo(textured / "fifo.yaml")
+    r = guaca("render", "fifo.yaml", "--out", "o.png", cwd=textured, timeout=60)
+    one_error_line(r, "fifo.yaml: scene file is a FIFO, not a regular file")
     assert not (textured / "o.png").exists()
 
 
