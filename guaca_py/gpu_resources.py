@@ -16,24 +16,21 @@ KEEP_FRAMES = 3
 
 
 def mesh_digest(mesh) -> str:
-    """Content digest of a MeshData, memoised on the object while its arrays stay the same objects.
+    """Content digest of a MeshData: computed (and the arrays checked) once while its arrays stay the same objects.
 
     Replacing an array (or the MeshData) is seen; editing an array in place is not: treat
     uploaded arrays as immutable and assign new ones instead.
     """
-    arrays = (mesh.positions, mesh.normals, mesh.texcoords, mesh.indices)
-    ids = tuple(id(a) for a in arrays)
-    memo = mesh.__dict__.get("_gua_digest")
-    if memo is not None and memo[0] == ids:
-        return memo[1]
+    return mesh.derived("digest", _content_digest)
+
+
+def _content_digest(mesh) -> str:
     h = hashlib.blake2b(digest_size=16)
-    for a in arrays:
+    for a in (mesh.positions, mesh.normals, mesh.texcoords, mesh.indices):
         a = np.ascontiguousarray(a)
         h.update(f"{a.dtype.str}{a.shape}".encode())
         h.update(memoryview(a).cast("B"))
-    digest = h.hexdigest()
-    mesh.__dict__["_gua_digest"] = (ids, digest)
-    return digest
+    return h.hexdigest()
 
 
 class _FrameCache:

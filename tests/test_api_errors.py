@@ -170,6 +170,51 @@ def test_meshdata_takes_a_flat_index_list():
     assert quad(indices=np.array([0, 1, 2, 0, 2, 3], dtype=np.uint32)).indices.shape == (6,)
 
 
+CHANGED_MESHES = [
+    ("positions", np.full((4, 3), np.nan, np.float32), "positions must be finite"),
+    ("positions", np.zeros((4, 2), np.float32), r"positions must have shape \(n, 3\)"),
+    ("positions", np.zeros((4, 3)).astype(str), "positions must hold real numbers, got <U"),
+    ("normals", np.full((4, 3), 1e39), "normals hold values beyond float32's range"),
+    ("indices", np.array([[0, 1, 2_000_000_000]], dtype=np.int64), r"indices must lie in \[0, 4\)"),
+    ("indices", np.array([[0, 1, 2]], dtype=np.float32), "indices must be integers"),
+    ("texcoords", None, r"texcoords must have shape \(n, 2\), got NoneType"),
+]
+
+
+@pytest.mark.parametrize("field, value, match", CHANGED_MESHES, ids=lambda v: str(v)[:24] if isinstance(v, str) else "")
+def test_a_mesh_changed_after_it_was_drawn_is_checked_again(own, field, value, match):
+    """Replacing an array of a drawn mesh: the next render raises ConfigError naming the mesh, never draws it."""
+    mesh = quad()
+    s = simple_scene([Node("q", Transform(), mesh, MaterialInstance("unlit"))])
+    own.render(s, SIZE, SIZE)
+    setattr(mesh, field, value)
+    for _ in range(2):  # and again: the refusal is not memoised away
+        with pytest.raises(ConfigError, match=match) as info:
+            own.render(s, SIZE, SIZE)
+        assert "mesh 'bad'" in str(info.value)
+
+
+def test_a_mesh_is_checked_and_hashed_once_per_change(own, monkeypatch):
+    """Frames that draw an unchanged mesh neither check nor hash it again; replacing an array does, once."""
+    mesh = quad()
+    s = simple_scene([Node("q", Transform(), mesh, MaterialInstance("unlit"))])
+    own.render(s, SIZE, SIZE)
+    checks = []
+    monkeypatch.setattr(MeshData, "check", lambda self: checks.append(self.name))
+    for _ in range(3):
+        own.render(s, SIZE, SIZE)
+    assert checks == []
+    uploads = own.meshes.uploads
+    mesh.positions = mesh.positions * 0.5
+    for _ in range(3):
+        own.render(s, SIZE, SIZE)
+    assert checks == ["bad"] and own.meshes.uploads == uploads + 1
+
+
+def test_a_flat_index_list_counts_its_triangles():
+    assert quad(indices=np.array([0, 1, 2, 0, 2, 3], dtype=np.uint32)).triangle_count == 2
+
+
 # ------------------------------------------------------------------ lights and background
 @pytest.mark.parametrize(
     "fields, key",

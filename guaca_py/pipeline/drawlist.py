@@ -35,11 +35,16 @@ class Draw:
 
 
 def _mesh_reach(mesh) -> float:
-    """Largest absolute object-space coordinate, computed once per mesh (meshes are immutable once loaded)."""
-    reach = mesh.__dict__.get("_guaca_reach")
-    if reach is None:
-        reach = mesh.__dict__["_guaca_reach"] = float(np.abs(mesh.positions).max()) if len(mesh.positions) else 0.0
-    return reach
+    """Largest absolute object-space coordinate, computed once per mesh content.
+
+    Every frame asks for it before anything reads the mesh, so a mesh whose arrays were replaced
+    is checked again here (MeshData.derived), before its arrays reach the GPU.
+    """
+    return mesh.derived("reach", _reach)
+
+
+def _reach(mesh) -> float:
+    return float(np.abs(mesh.positions).max()) if len(mesh.positions) else 0.0
 
 
 def check_world_extents(placed: list[tuple]) -> None:

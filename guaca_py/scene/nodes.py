@@ -105,18 +105,48 @@ def _freeze(v) -> tuple:
     return v if type(v) is tuple else tuple(float(x) for x in v)
 
 
+#: largest magnitude a vertex attribute may hold: the GPU receives float32
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
 @dataclass
 class MeshData:
-    """Indexed triangle mesh in object space; normals and texcoords are always present."""
+    """Indexed triangle mesh in object space; normals and texcoords are always present.
+
+    The arrays may be replaced after construction (`mesh.positions = new`): the renderer checks
+    them again, once, before the next frame uses them. Editing an array in place is not seen:
+    treat uploaded arrays as immutable and assign new ones instead.
+    """
 
     positions: np.ndarray  # (N, 3) float32
     normals: np.ndarray  # (N, 3) float32, unit length
     texcoords: np.ndarray  # (N, 2) float32
-    indices: np.ndarray  # (M, 3) uint32
+    indices: np.ndarray  # (M, 3) uint32, or (3M,)
     name: str = "mesh"
 
     def __post_init__(self):
         self.check()
+        self.__dict__["_gua_derived"] = (self._arrays(), {})
+
+    def _arrays(self) -> tuple:
+        return (self.positions, self.normals, self.texcoords, self.indices)
+
+    def derived(self, name: str, compute):
+        """`compute(self)`, memoised while the mesh holds the same four array objects (a content digest, a reach).
+
+        When any array was replaced since the last call, the arrays are checked again first
+        (`check`, ConfigError naming the mesh) and every memoised value is dropped: each costs
+        one pass over the arrays per change, never one per frame.
+        """
+        arrays = self._arrays()
+        held = self.__dict__.get("_gua_derived")
+        if held is None or any(a is not b for a, b in zip(arrays, held[0])):
+            self.check()
+            held = self.__dict__["_gua_derived"] = (arrays, {})
+        values = held[1]
+        if name not in values:
+            values[name] = compute(self)
+        return values[name]
 
     def check(self) -> None:
         """Refuse arrays of the wrong shape, non-finite positions and indices outside the vertex list (ConfigError)."""
@@ -148,13 +178,18 @@ class MeshData:
         if idx.size and (int(idx.min()) < 0 or int(idx.max()) >= n):
             raise fail(f"indices must lie in [0, {n}), found {int(idx.min())}..{int(idx.max())}")
         for field_name in ("positions", "normals", "texcoords"):
-            if not np.all(np.isfinite(arrays[field_name])):
+            a = arrays[field_name]
+            if not (np.issubdtype(a.dtype, np.floating) or np.issubdtype(a.dtype, np.integer)):
+                raise fail(f"{field_name} must hold real numbers, got {a.dtype}")
+            if not np.all(np.isfinite(a)):
                 raise fail(f"{field_name} must be finite (no NaN or inf)")
+            if a.size and a.dtype.itemsize > 4 and float(np.max(np.abs(a))) > _FLOAT32_MAX:
+                raise fail(f"{field_name} hold values beyond float32's range (the GPU would read inf)")
 
     @property
     def triangle_count(self) -> int:
-        """Number of triangles."""
-        return int(self.indices.shape[0])
+        """Number of triangles (an index list of shape (M, 3) or flat (3M,))."""
+        return int(np.size(self.indices)) // 3
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Axis-aligned (min, max) corners in object space."""

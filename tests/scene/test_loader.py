@@ -351,7 +351,11 @@ def _special(tmp_path: Path, kind: str, name: str) -> Path:
     return p
 
 
-SPECIAL = {"fifo": "is a FIFO, not a regular file", "directory": "is a directory", "device": "is a device, not a regular file"}
+SPECIAL = {
+    "fifo": "is a FIFO, not a regular file",
+    "directory": "is a directory",
+    "device": "is a device, not a regular file",
+}
 
 
 @pytest.mark.parametrize("kind", SPECIAL)
