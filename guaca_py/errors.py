@@ -31,6 +31,10 @@ class ConfigError(GuacaError):
         super().__init__(msg)
 
 
+class ArgumentError(ConfigError, TypeError):
+    """An argument of the wrong kind (still a TypeError, as Python's own checks raise)."""
+
+
 class LimitError(ConfigError):
     """A request exceeds a device or format limit; names the option or key, the limit and what to do."""
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ConfigError
+from .errors import ConfigError, LimitError
 from .yaml_source import file_problem
 
 _BUILTIN_TEXELS = {"white": (255, 255, 255, 255), "black": (0, 0, 0, 255), "normal": (128, 128, 255, 255)}
@@ -29,7 +29,8 @@ def _content_digest(mesh) -> str:
     for a in (mesh.positions, mesh.normals, mesh.texcoords, mesh.indices):
         a = np.ascontiguousarray(a)
         h.update(f"{a.dtype.str}{a.shape}".encode())
-        h.update(memoryview(a).cast("B"))
+        if a.size:  # memoryview cannot cast an empty array; its shape said all
+            h.update(memoryview(a).cast("B"))
     return h.hexdigest()
 
 
@@ -145,6 +146,13 @@ class TextureCache(_FrameCache):
         if key in self._tex:
             return self._tex[key]
         if hasattr(name, "pixels"):
+            device = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
+            if max(name.size) > device:  # the driver would make an incomplete texture without an error
+                raise LimitError(
+                    f"is {name.size[0]}x{name.size[1]}; the device's largest texture is {device}x{device}",
+                    key=f"TextureImage {name.name!r}",
+                    hint="scale the image down",
+                )
             img = np.ascontiguousarray(name.pixels[::-1])  # row 0 at the top -> GL's bottom-up rows
             tex = self.ctx.texture(name.size, 4, img.tobytes())
             tex.build_mipmaps()
@@ -153,10 +161,14 @@ class TextureCache(_FrameCache):
         else:
             from .scene.texture import MAX_TEXTURE_SIDE, decode_image
 
-            path = Path(name) if Path(name).is_absolute() or base is None else base / name
+            relative = not Path(name).is_absolute() and base is not None
+            path = base / name if relative else Path(name)
             problem = file_problem(path)
             if problem is not None:
-                raise ConfigError(f"texture {problem}", path, hint="paths in scenes resolve against the scene file")
+                # a scene's values with an image suffix are absolute by now (scene/loader.py); others are relative
+                # to the material that declares the sampler, as its defaults are
+                where = f"relative names are looked for beside the material ({base})" if relative else "check the path"
+                raise ConfigError(f"texture {problem}", path, hint=where)
             device = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
             limit = "the device's largest" if device <= MAX_TEXTURE_SIDE else "the largest read"
             try:

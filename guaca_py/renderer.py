@@ -12,7 +12,7 @@ import numpy as np
 
 from . import antialiasing
 from .context import create_context
-from .errors import ConfigError, GuacaError, UnsupportedMethodError
+from .errors import ArgumentError, ConfigError, GuacaError, UnsupportedMethodError
 from .gpu_resources import MeshCache, TextureCache
 from .gpu_timer import TimerQuery
 from .host_state import ContextGuard, native, native_handle, on_context
@@ -433,10 +433,6 @@ class Renderer:
         """Free every GPU resource the renderer holds, and its context when it made its own."""
         if self._finalizer.detach() is not None:  # once: a second release() does nothing
             _release_parts(self.__dict__)
-
-
-class ArgumentError(ConfigError, TypeError):
-    """An argument of the wrong kind (still a TypeError, as Python's own checks raise)."""
 
 
 def _check_viewport(viewport) -> None:

@@ -226,11 +226,32 @@ def test_a_flat_index_list_counts_its_triangles():
         (dict(type="directional", direction=(0.0, 0.0, 0.0)), "direction"),
         (dict(type="spot", direction=(math.nan, -1.0, 0.0)), "direction"),
         (dict(type="laser"), "type"),
+        (dict(intensity=-1.0), "intensity"),
+        (dict(color=(1.0, -0.5, 0.0)), "color"),
+        (dict(type="point", radius=0.0), "radius"),
+        (dict(type="spot", radius=-1.0), "radius"),
+        (dict(type="spot", inner_angle_deg=80.0, outer_angle_deg=10.0), "inner_angle_deg"),
+        (dict(type="spot", inner_angle_deg=-1.0), "inner_angle_deg"),
+        (dict(type="spot", outer_angle_deg=95.0), "outer_angle_deg"),
     ],
 )
 def test_light_refuses_unusable_values_at_construction(fields, key):
     with pytest.raises(ConfigError, match=rf"'light\.{key}'"):
         Light(**fields)
+
+
+def test_unused_light_fields_are_not_held_to_ranges():
+    """A directional light has no radius or cone: values there are not refused (they draw nothing)."""
+    assert Light(type="directional", radius=-1.0, outer_angle_deg=120.0).radius == -1.0
+
+
+@pytest.mark.parametrize("field, value", [("radius", 0.0), ("outer_angle_deg", 90.0), ("intensity", -2.0)])
+def test_light_range_changed_after_construction_is_refused_at_render(own, field, value):
+    s = scene()
+    s.lights = [Light(type="spot", position=(0.0, 0.0, 3.0), direction=(0.0, 0.0, -1.0))]
+    setattr(s.lights[0], field, value)
+    with pytest.raises(ConfigError, match=rf"'lights\[0\]\.{field}'"):
+        own.render(s, SIZE, SIZE)
 
 
 def test_light_changed_after_construction_is_refused_at_render(own):
@@ -360,3 +381,65 @@ def test_transform_values_must_be_finite():
     with pytest.raises(ConfigError, match="'Transform.scale'"):
         Transform(scale=(1.0, 1.0))
     assert Node(transform=Transform(translation=np.float32([1, 2, 3])), material=MaterialInstance()).mesh is None
+
+
+@pytest.mark.parametrize(
+    "field, value",
+    [("translation", "abc"), ("rotation_deg", (1.0, "x", 0.0)), ("scale", (math.nan, 1.0, 1.0)), ("scale", 3)],
+)
+def test_transform_values_changed_after_construction_are_named_with_the_node(own, field, value):
+    s = scene()
+    setattr(s.nodes[0].transform, field, value)
+    with pytest.raises(ConfigError, match=rf"'q\.transform\.{field}': must be 3 finite numbers"):
+        own.render(s, SIZE, SIZE)
+
+
+def test_meshes_without_triangles_draw_nothing(own):
+    """An empty MeshData, or vertices without triangles, is drawn as nothing (it was an empty GPU buffer)."""
+    empty = MeshData(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 2)), np.zeros((0, 3), np.uint32), "empty")
+    points = MeshData(np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 2)), np.zeros((0, 3), np.uint32), "points")
+    reference = own.render(scene(), SIZE, SIZE).image
+    s = scene()
+    s.nodes += [Node("e", Transform(), empty, MaterialInstance("unlit")), Node("p", Transform(), points)]
+    frame = own.render(s, SIZE, SIZE)
+    assert np.array_equal(frame.image, reference) and frame.stats["draws"] == 1
+
+
+@pytest.mark.parametrize("path", [123, None, b"/tmp/scene.yaml", ["a.yaml"]])
+def test_load_names_an_argument_that_is_not_a_path(path):
+    from guaca_py import load
+    from guaca_py.errors import ArgumentError
+
+    with pytest.raises(ArgumentError, match="'path': load takes a file path") as info:
+        load(path)
+    assert isinstance(info.value, TypeError)
+
+
+@pytest.mark.parametrize(
+    "pixels, match",
+    [
+        (np.zeros((2, 2, 2, 2)), r"must be \(H, W\[, 1-4\]\) pixels"),
+        (np.zeros((1, 16385), np.uint8), "is 16385x1; the largest texture is 16384x16384"),
+        (np.array([["a"]]), "must hold numbers"),
+    ],
+    ids=["4d", "too-wide", "text"],
+)
+def test_texture_image_refuses_what_is_no_image(pixels, match):
+    from guaca_py.scene.texture import TextureImage
+
+    with pytest.raises(ConfigError, match=match) as info:
+        TextureImage(pixels, "img")
+    assert isinstance(info.value, ValueError) and "'TextureImage 'img''" in str(info.value)
+
+
+def test_an_image_wider_than_the_device_takes_is_refused_before_upload():
+    """The driver would make an incomplete texture (llvmpipe: without an error) that samples as black."""
+    from types import SimpleNamespace
+
+    from guaca_py.errors import LimitError
+    from guaca_py.gpu_resources import TextureCache
+    from guaca_py.scene.texture import TextureImage
+
+    small_device = SimpleNamespace(info={"GL_MAX_TEXTURE_SIZE": 8})  # no texture is made: the check comes first
+    with pytest.raises(LimitError, match="is 16x4; the device's largest texture is 8x8"):
+        TextureCache(small_device).get(TextureImage(np.zeros((4, 16, 4), np.uint8), "wide"))

@@ -341,7 +341,7 @@ def test_outputs_keep_modes_and_write_through_links(textured):
         (["render", "--set", "max_steps=99999999999999999999"], ["--set max_steps=99999999999999999999", "32-bit"]),
         (["view", "--headless", "--width", "0"], ["--width: must be >= 1, got 0"]),  # was: cannot open a window
         (["view", "--headless", "--height", "-3"], ["--height: must be >= 1, got -3"]),
-        (["view", "--headless", "--frames", "-1"], ["--frames: must be >= 0"]),
+        (["view", "--headless", "--frames", "-1"], ["--frames: must be in [0, 1e+06], got -1"]),
         (["view", "--headless", "--screenshot", "shot"], ["'--screenshot': cannot tell the image format"]),
         (["view", "--headless", "--screenshot", "scene.yaml"], ["'--screenshot'", "from '.yaml'"]),
         (["view", "--headless", "--screenshot", "tex.png"], ["'--screenshot': is an input of this run"]),

@@ -47,6 +47,15 @@ def _reach(mesh) -> float:
     return float(np.abs(mesh.positions).max()) if len(mesh.positions) else 0.0
 
 
+def _drawn(node) -> bool:
+    """The node has a mesh with triangles (its arrays checked again when replaced): one without draws nothing."""
+    return node.mesh is not None and node.mesh.derived("triangles", _triangles) > 0
+
+
+def _triangles(mesh) -> int:
+    return mesh.triangle_count
+
+
 def check_world_extents(placed: list[tuple]) -> None:
     """Reject a mesh whose world-space extent leaves the range float32 vertices and clipping handle.
 
@@ -93,7 +102,7 @@ def build_draw_list(scene: Scene, materials: MaterialRegistry, cache=None) -> li
     draws: list[Draw] = []
     placed: list[tuple] = []
     for node, world in scene.walk():
-        if node.mesh is None:
+        if not _drawn(node):
             continue
         desc, values, transparent = _resolve_material(node.material, scene, materials)
         draws.append(Draw(len(draws), node.name, node.mesh, desc, values, world, transparent))
@@ -109,8 +118,13 @@ def _build_cached(scene: Scene, materials: MaterialRegistry, cache) -> list[Draw
         return lambda: _resolve_material(inst, scene, materials)
 
     def visit(node, parent_key, parent_world):
-        key, world_glm, world, model_bytes, normal_bytes = cache.world(parent_key, parent_world, node.transform)
-        if node.mesh is not None:
+        try:
+            key, world_glm, world, model_bytes, normal_bytes = cache.world(parent_key, parent_world, node.transform)
+        except ConfigError as exc:  # a transform value changed since construction: named with its node
+            file, line = getattr(node, "source", (None, None))
+            key = exc.key.replace("Transform", f"{node.name}.transform") if exc.key else None
+            raise ConfigError(exc.reason, file, line, key, exc.hint) from None
+        if _drawn(node):
             placed.append((node, world))
             inst = node.material
             desc, values, transparent = cache.material(material_key(inst, scene.source), resolver(inst))

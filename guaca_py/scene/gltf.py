@@ -184,8 +184,39 @@ def _check_camera(cam: dict, where: str, fail) -> None:
             )
 
 
+_TEXTURE_SLOTS = (
+    "pbrMetallicRoughness.baseColorTexture",
+    "pbrMetallicRoughness.metallicRoughnessTexture",
+    "normalTexture",
+    "occlusionTexture",
+    "emissiveTexture",
+)
+
+
+def _check_textures(doc: dict, fail) -> None:
+    """Every texture a material names exists, and every texture's image and sampler (trimesh drops a dangling one)."""
+    textures, images = _items(doc, "textures", fail), _items(doc, "images", fail)
+    samplers = _items(doc, "samplers", fail)
+    for i, mat in enumerate(_items(doc, "materials", fail)):
+        for slot in _TEXTURE_SLOTS:
+            ref = mat
+            for part in slot.split("."):
+                ref = ref.get(part) if isinstance(ref, dict) else None
+            if ref is None:
+                continue
+            if not isinstance(ref, dict):
+                raise fail(f"materials[{i}].{slot} must be an object with an index", "export the file again")
+            _index(ref.get("index"), len(textures), f"materials[{i}].{slot}.index", fail)
+    for t, texture in enumerate(textures):
+        if "source" in texture:
+            _index(texture["source"], len(images), f"textures[{t}].source", fail)
+        if "sampler" in texture:
+            _index(texture["sampler"], len(samplers), f"textures[{t}].sampler", fail)
+
+
 def _check_materials(doc: dict, fail) -> None:
     """Material factors finite and in range (a NaN alpha or colour renders as nothing or noise)."""
+    _check_textures(doc, fail)
     for i, mat in enumerate(_items(doc, "materials", fail)):
         pbr = mat.get("pbrMetallicRoughness", {})
         pbr = pbr if isinstance(pbr, dict) else {}
@@ -516,8 +547,9 @@ def _load_trimesh(p: Path, doc: dict, binary: bytes | None, fail):
 
     rewritten = _rewritten(p, doc, binary, fail)
     if rewritten is None:
-        # a binary glTF under another name is read by its magic bytes (files.py: model_kind)
-        kind = p.suffix.lower().lstrip(".") if p.suffix.lower() in GLTF_SUFFIXES else "glb"
+        # the container by its magic bytes, not its name (a binary glTF named .gltf, JSON named .glb)
+        with p.open("rb") as f:
+            kind = "glb" if f.read(4) == b"glTF" else "gltf"
         return trimesh.load(str(p), file_type=kind, force="scene", process=False)
     text = json.dumps(rewritten).encode()
     if binary is None:

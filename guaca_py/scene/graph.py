@@ -14,6 +14,7 @@ import numpy as np
 from ..errors import ConfigError
 from .nodes import (
     LIGHT_TYPES,
+    MAX_CONE_DEG,
     MAX_RADIANCE,
     MAX_WORLD,
     Camera,
@@ -141,7 +142,15 @@ def _lights_plausible(lights: list[Light]) -> bool:
     if np.any(np.max(np.abs(vec[:, 0]), axis=1) * np.abs(num[:, 0]) > MAX_RADIANCE):
         return False
     aimed = np.array([l.type in ("spot", "directional") for l in lights])
-    return not np.any(aimed & np.all(vec[:, 2] == 0.0, axis=1))
+    if np.any(aimed & np.all(vec[:, 2] == 0.0, axis=1)):
+        return False
+    if np.any(num[:, 0] < 0.0) or np.any(vec[:, 0] < 0.0):  # negative intensity or colour
+        return False
+    ranged = np.array([l.type in ("point", "spot") for l in lights])
+    spot = np.array([l.type == "spot" for l in lights])
+    inner, outer = num[:, 2], num[:, 3]
+    cone = (outer > 0.0) & (outer <= MAX_CONE_DEG) & (inner >= 0.0) & (inner <= outer)
+    return not (np.any(ranged & ~(num[:, 1] > 0.0)) or np.any(spot & ~cone))
 
 
 __all__ = [

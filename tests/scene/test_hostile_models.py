@@ -785,3 +785,68 @@ def test_out_of_range_ply_face_and_odd_obj_digits_are_refused(tmp_path):
         "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 90\n"
     )
     mesh_refused(ply, "face indices outside its vertex list")
+
+
+def test_obj_vertex_beyond_float32_is_refused_without_warnings(tmp_path, recwarn):
+    path = tmp_path / "far.obj"
+    path.write_text("v 1e39 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    mesh_refused(path, "vertex coordinates up to 1e+39, beyond float32's range")
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+
+
+def test_obj_with_huge_coordinates_keeps_its_distinct_vertices(tmp_path, recwarn):
+    """trimesh's merge hashes coordinates x 1e8 as int64: at 1e12 it joined 300 vertices into 60; not merged now."""
+    from guaca_py.scene.mesh_io import load_mesh_file
+
+    rng = np.random.default_rng(0)
+    v = rng.random((300, 3)) * 1e12
+    faces = np.arange(300).reshape(100, 3) + 1
+    path = tmp_path / "huge.obj"
+    path.write_text(
+        "".join(f"v {x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in v) + "".join(f"f {a} {b} {c}\n" for a, b, c in faces)
+    )
+    mesh = load_mesh_file(path)
+    assert len(mesh.positions) == 300 and np.allclose(mesh.positions[mesh.indices.reshape(-1)], v, rtol=1e-6)
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+
+
+def textured_quad(index: int) -> dict:
+    doc = quad_doc()
+    doc["materials"] = [{"pbrMetallicRoughness": {"baseColorTexture": {"index": index}}}]
+    doc["meshes"][0]["primitives"][0]["material"] = 0
+    return doc
+
+
+@pytest.mark.parametrize(
+    "change, fragment",
+    [
+        (lambda d: None, "materials[0].pbrMetallicRoughness.baseColorTexture.index = 0 is not an index below 0"),
+        (lambda d: d.update(textures=[{"source": 3}]), "textures[0].source = 3 is not an index below 0"),
+        (lambda d: d.update(textures=[{"sampler": 1}]), "textures[0].sampler = 1 is not an index below 0"),
+        (
+            lambda d: (d.update(textures=[{}]), d["materials"][0].update(normalTexture=5)),
+            "materials[0].normalTexture must be an object",
+        ),
+    ],
+    ids=["texture", "image", "sampler", "not-an-object"],
+)
+def test_dangling_texture_references_are_refused(tmp_path, change, fragment):
+    """trimesh drops a texture that is not there and draws the model untextured: refused by its path instead."""
+    doc = textured_quad(0)
+    change(doc)
+    refused(write(tmp_path, doc), fragment)
+
+
+@pytest.mark.parametrize("binary_as", ["m.gltf", "m.glb"])
+def test_the_container_is_read_by_its_content_not_its_name(tmp_path, binary_as):
+    """JSON named .glb and a binary glTF named .gltf both load."""
+    doc = quad_doc()
+    if binary_as == "m.gltf":
+        data = base64.b64decode(doc["buffers"][0].pop("uri").split(",", 1)[1])
+        text = json.dumps(doc).encode()
+        text += b" " * (-len(text) % 4)
+        body = struct.pack("<II", len(text), 0x4E4F534A) + text + struct.pack("<II", len(data), 0x004E4942) + data
+        (tmp_path / binary_as).write_bytes(struct.pack("<III", 0x46546C67, 2, 12 + len(body)) + body)
+    else:
+        write(tmp_path, doc, binary_as)
+    assert loaded_positions(tmp_path / binary_as) == [QUAD[k] for k in (0, 1, 2, 0, 2, 3)]

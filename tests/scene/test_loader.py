@@ -386,6 +386,33 @@ def test_a_texture_that_is_no_regular_file_cites_the_scene_line(tmp_path, kind):
     assert Path(e.file) == scene_path and e.line == 3 and e.key == "nodes[0].material.uniforms.albedo_map"
 
 
+@pytest.mark.parametrize("fmt, suffix", [("WEBP", ".webp"), ("BMP", ".bmp"), ("GIF", ".gif"), ("TIFF", ".tif")])
+def test_textures_of_every_image_suffix_resolve_against_the_scene(tmp_path, fmt, suffix):
+    """Not only .png/.jpg: any image suffix Pillow reads names a texture beside the scene (not beside the material)."""
+    from PIL import Image
+
+    Image.new("RGB", (2, 2), (255, 0, 0)).save(tmp_path / f"t{suffix}", fmt)
+    scene = load_scene_text(
+        f"nodes: [{{material: {{description: pbr_textured, uniforms: {{albedo_map: t{suffix}}}}}}}]", "s.yaml", tmp_path
+    )
+    assert scene.nodes[0].material.uniforms["albedo_map"] == str(tmp_path / f"t{suffix}")
+
+
+def test_a_texture_link_loop_is_refused_at_its_line(tmp_path):
+    (tmp_path / "loop.png").symlink_to("loop.png")
+    with pytest.raises(ConfigError) as err:
+        load_scene_text(
+            "nodes:\n  - material: {description: pbr_textured, uniforms: {albedo_map: loop.png}}\n", "s.yaml", tmp_path
+        )
+    assert err.value.line == 2 and "symbolic links" in str(err.value) and "loop.png" in str(err.value)
+
+
+def test_a_control_character_in_a_scene_is_one_line_at_its_line():
+    with pytest.raises(ConfigError) as err:
+        load_scene_text("nodes:\n  - name: a\0b\n", "s.yaml")
+    assert str(err.value).count("\n") == 0 and err.value.line == 2 and "#x0000 is not allowed" in str(err.value)
+
+
 @pytest.mark.parametrize("suffix,what", [(".obj", "mesh file"), (".glb", "glTF file")])
 @pytest.mark.parametrize("kind", SPECIAL)
 def test_a_mesh_that_is_no_regular_file_cites_the_scene_line(tmp_path, kind, suffix, what):
