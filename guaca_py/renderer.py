@@ -301,8 +301,8 @@ class Renderer:
         host = host_target(target, w, h, viewport) if over_target else None  # refused before any work
         try:
             draws = build_draw_list(scene, self.materials, self.draw_cache)
-        except (AttributeError, TypeError):
-            scene.check_structure()  # a part of the wrong type: named here (not checked on every frame)
+        except (AttributeError, TypeError, RecursionError):
+            scene.check_structure()  # a part of the wrong type, a cycle: named here (not checked on every frame)
             raise
         frame = FrameContext(
             self.device, self.method, self.raster, scene, w, h, draws, *self.camera_matrices(scene, w, h)

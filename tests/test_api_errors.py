@@ -365,6 +365,9 @@ def test_renderer_arguments_of_the_wrong_kind(own, tmp_path):
         (lambda s: setattr(s.nodes[0], "transform", None), r"'nodes\[0\]\.transform': must be a Transform"),
         (lambda s: setattr(s.nodes[0], "material", "unlit"), r"'nodes\[0\]\.material': must be a MaterialInstance"),
         (lambda s: s.nodes[0].children.append("x"), r"'nodes\[0\]\.children\[0\]': must be a Node"),
+        (lambda s: setattr(s.nodes[0].material, "description", 5), r"'nodes\[0\]\.material\.description': must be"),
+        (lambda s: setattr(s.nodes[0].material, "uniforms", [1]), r"'nodes\[0\]\.material\.uniforms': must be a dict"),
+        (lambda s: s.nodes[0].children.append(s.nodes[0]), r"'nodes\[0\]\.children\[0\]': is a node that contains it"),
     ],
 )
 def test_scene_parts_of_the_wrong_type_are_named(own, make, key):
@@ -443,3 +446,31 @@ def test_an_image_wider_than_the_device_takes_is_refused_before_upload():
     small_device = SimpleNamespace(info={"GL_MAX_TEXTURE_SIZE": 8})  # no texture is made: the check comes first
     with pytest.raises(LimitError, match="is 16x4; the device's largest texture is 8x8"):
         TextureCache(small_device).get(TextureImage(np.zeros((4, 16, 4), np.uint8), "wide"))
+
+
+def test_a_cycle_below_the_roots_is_named():
+    a, b = Node("a"), Node("b")
+    a.children.append(b)
+    b.children.append(a)
+    s = scene()
+    s.nodes[0].children.append(a)
+    with pytest.raises(ConfigError, match=r"'nodes\[0\]\.children\[0\]\.children\[0\]\.children\[0\]': is a node that"):
+        s.check_structure()
+
+
+def test_a_node_tree_too_deep_to_walk_is_refused_and_a_shared_node_drawn_twice(own):
+    from guaca_py.scene.graph import MAX_TREE_DEPTH
+
+    s = scene()
+    s.nodes.append(s.nodes[0])  # the same node twice: two draws, no cycle
+    assert own.render(s, SIZE, SIZE).stats["draws"] == 2
+    node = s.nodes[0]
+    for i in range(MAX_TREE_DEPTH):
+        child = Node(f"n{i}")
+        node.children.append(child)
+        node = child
+    with pytest.raises(
+        ConfigError,
+        match=rf"nodes\[0\]\.\(\.\.\.{MAX_TREE_DEPTH - 1} levels\.\.\.\)\.children\[0\]': nodes nested deeper than {MAX_TREE_DEPTH}",
+    ):
+        own.render(s, SIZE, SIZE)

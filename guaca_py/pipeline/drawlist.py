@@ -8,7 +8,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..materials import MaterialDescription, MaterialRegistry
-from ..scene.graph import MAX_WORLD, MeshData, Scene
+from ..scene.graph import MAX_TREE_DEPTH, MAX_WORLD, MeshData, Scene
 from ..shaders import mat_bytes, set_uniform, uniform_names
 from .draw_cache import material_key
 
@@ -117,7 +117,10 @@ def _build_cached(scene: Scene, materials: MaterialRegistry, cache) -> list[Draw
     def resolver(inst):
         return lambda: _resolve_material(inst, scene, materials)
 
-    def visit(node, parent_key, parent_world):
+    def visit(node, parent_key, parent_world, depth=1):
+        if depth > MAX_TREE_DEPTH:  # a cycle, or a tree too deep to recurse through: named by the tree's check
+            scene.check_structure()
+            raise ConfigError(f"nodes nested deeper than {MAX_TREE_DEPTH} levels", key="nodes")
         try:
             key, world_glm, world, model_bytes, normal_bytes = cache.world(parent_key, parent_world, node.transform)
         except ConfigError as exc:  # a transform value changed since construction: named with its node
@@ -132,7 +135,7 @@ def _build_cached(scene: Scene, materials: MaterialRegistry, cache) -> list[Draw
                 Draw(len(draws), node.name, node.mesh, desc, values, world, transparent, model_bytes, normal_bytes)
             )
         for child in node.children:
-            visit(child, key, world_glm)
+            visit(child, key, world_glm, depth + 1)
 
     placed: list[tuple] = []
     for root in scene.nodes:

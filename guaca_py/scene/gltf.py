@@ -489,7 +489,7 @@ def _rewritten(p: Path, doc: dict, binary: bytes | None, fail) -> dict | None:
 
     Sparse accessors become dense, integer vertex attributes floats (normalized ones scaled),
     strip and fan primitives triangle lists; each rewritten accessor's data goes in a data:
-    buffer of its own.
+    buffer of its own. A file without scenes gets one of its root nodes.
     """
     import copy
 
@@ -510,9 +510,14 @@ def _rewritten(p: Path, doc: dict, binary: bytes | None, fail) -> dict | None:
     dense = [i for i, acc in enumerate(accessors) if "sparse" in acc]
     floats = [i for i in sorted(attributes) if accessors[i].get("componentType") != 5126]
     strips = [(m, k) for m, k, prim in prims if prim.get("mode") in (5, 6)]
-    if not (dense or floats or strips):
+    nodes = _items(doc, "nodes", fail)
+    sceneless = not doc.get("scenes") and bool(nodes)  # trimesh then reads nothing at all
+    if not (dense or floats or strips or sceneless):
         return None
     out = copy.deepcopy(doc)
+    if sceneless:  # every node that is no other's child is a root, as for the file's camera (camera_node)
+        children = {c for n in nodes for c in n.get("children", [])}
+        out["scenes"], out["scene"] = [{"nodes": [i for i in range(len(nodes)) if i not in children]}], 0
     for key in ("buffers", "bufferViews", "accessors"):
         out.setdefault(key, [])
     for i in sorted(set(dense) | set(floats)):

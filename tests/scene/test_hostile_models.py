@@ -850,3 +850,10 @@ def test_the_container_is_read_by_its_content_not_its_name(tmp_path, binary_as):
     else:
         write(tmp_path, doc, binary_as)
     assert loaded_positions(tmp_path / binary_as) == [QUAD[k] for k in (0, 1, 2, 0, 2, 3)]
+
+
+def test_a_file_without_scenes_draws_its_root_nodes(tmp_path):
+    """glTF leaves a file without `scenes` to the reader: its root nodes are drawn (trimesh read nothing)."""
+    doc = quad_doc()
+    del doc["scenes"], doc["scene"]
+    assert loaded_positions(write(tmp_path, doc)) == [QUAD[k] for k in (0, 1, 2, 0, 2, 3)]
