@@ -14,8 +14,13 @@ from .output import IMAGE_SUFFIXES, active_reads, check_distinct, check_writable
 SET_INT_MIN, SET_INT_MAX = -(2**31), 2**31 - 1
 
 
-def _at_least(value: int | None, lo: int, option: str, hint: str) -> None:
-    problem = None if value is None else Range(lo).problem(value)
+#: most frames --frames or --warmup asks for: each timed frame's pass times are kept for the medians, and a
+#: count of ten digits (a typo) would run for months
+MAX_FRAMES = 1_000_000
+
+
+def _at_least(value: int | None, lo: int, option: str, hint: str, hi: int | None = None) -> None:
+    problem = None if value is None else Range(lo, hi).problem(value)
     if problem:
         raise ConfigError(problem, key=option, hint=hint)
 
@@ -30,15 +35,16 @@ def check_method_option(method: str | None) -> None:
 
 def parse_set_option(item: str) -> tuple[str, object]:
     """KEY and the YAML value of one `--set KEY=VALUE`; a malformed item is refused under its own text."""
-    import yaml
+    from .yaml_source import yaml_value
 
     key, sep, text = item.partition("=")
     if not sep or not key.strip():
         raise ConfigError(f"expects KEY=VALUE, got {item!r}", key="--set", hint="e.g. --set budget_mb=64")
-    try:
-        value = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"cannot read {text!r}: {exc}", key="--set", hint="e.g. --set budget_mb=64") from None
+    try:  # read as a pipeline file's value is: bounded nesting and aliases, plain tags only
+        value = yaml_value(text, "--set")
+    except ConfigError as exc:
+        shown = text if len(text) <= 40 else text[:37] + "..."
+        raise ConfigError(f"cannot read {shown!r}: {exc.reason}", key="--set", hint="e.g. --set budget_mb=64") from None
     if isinstance(value, float) and not math.isfinite(value):
         raise ConfigError(f"{text!r} is not a finite number", key=f"--set {item}", hint="e.g. --set budget_mb=64")
     if isinstance(value, int) and not isinstance(value, bool) and not SET_INT_MIN <= value <= SET_INT_MAX:
@@ -98,8 +104,8 @@ def check_render_args(args) -> None:
     _check_inputs(args)
     _at_least(args.width, 1, "--width", "give the image width in pixels, e.g. --width 512")
     _at_least(args.height, 1, "--height", "give the image height in pixels, e.g. --height 512")
-    _at_least(args.frames, 1, "--frames", "at least one frame is rendered and timed")
-    _at_least(args.warmup, 0, "--warmup", "0 renders no untimed frames")
+    _at_least(args.frames, 1, "--frames", "at least one frame is rendered and timed", MAX_FRAMES)
+    _at_least(args.warmup, 0, "--warmup", "0 renders no untimed frames", MAX_FRAMES)
     check_outputs(args)
 
 
@@ -108,6 +114,6 @@ def check_view_args(args) -> None:
     _check_inputs(args)
     _at_least(args.width, 1, "--width", "give the window width in pixels, e.g. --width 1024")
     _at_least(args.height, 1, "--height", "give the window height in pixels, e.g. --height 768")
-    _at_least(args.frames, 0, "--frames", "0 runs until the window is closed")
+    _at_least(args.frames, 0, "--frames", "0 runs until the window is closed", MAX_FRAMES)
     if args.screenshot is not None:
         check_writable(args.screenshot, "--screenshot", IMAGE_SUFFIXES)

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ConfigError
+from .errors import ConfigError, LimitError
+from .yaml_source import file_problem
 
 _BUILTIN_TEXELS = {"white": (255, 255, 255, 255), "black": (0, 0, 0, 255), "normal": (128, 128, 255, 255)}
 #: an entry unused for this many frames is freed (a few, so alternating scenes do not thrash)
@@ -15,24 +16,22 @@ KEEP_FRAMES = 3
 
 
 def mesh_digest(mesh) -> str:
-    """Content digest of a MeshData, memoised on the object while its arrays stay the same objects.
+    """Content digest of a MeshData: computed (and the arrays checked) once while its arrays stay the same objects.
 
     Replacing an array (or the MeshData) is seen; editing an array in place is not: treat
     uploaded arrays as immutable and assign new ones instead.
     """
-    arrays = (mesh.positions, mesh.normals, mesh.texcoords, mesh.indices)
-    ids = tuple(id(a) for a in arrays)
-    memo = mesh.__dict__.get("_gua_digest")
-    if memo is not None and memo[0] == ids:
-        return memo[1]
+    return mesh.derived("digest", _content_digest)
+
+
+def _content_digest(mesh) -> str:
     h = hashlib.blake2b(digest_size=16)
-    for a in arrays:
+    for a in (mesh.positions, mesh.normals, mesh.texcoords, mesh.indices):
         a = np.ascontiguousarray(a)
         h.update(f"{a.dtype.str}{a.shape}".encode())
-        h.update(memoryview(a).cast("B"))
-    digest = h.hexdigest()
-    mesh.__dict__["_gua_digest"] = (ids, digest)
-    return digest
+        if a.size:  # memoryview cannot cast an empty array; its shape said all
+            h.update(memoryview(a).cast("B"))
+    return h.hexdigest()
 
 
 class _FrameCache:
@@ -128,19 +127,29 @@ class TextureCache(_FrameCache):
         if key in self._tex:
             return self._tex[key]
         if hasattr(name, "pixels"):
+            device = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
+            if max(name.size) > device:  # the driver would make an incomplete texture without an error
+                raise LimitError(
+                    f"is {name.size[0]}x{name.size[1]}; the device's largest texture is {device}x{device}",
+                    key=f"TextureImage {name.name!r}",
+                    hint="scale the image down",
+                )
             img = np.ascontiguousarray(name.pixels[::-1])  # row 0 at the top -> GL's bottom-up rows
             tex = self.ctx.texture(name.size, 4, img.tobytes())
             tex.build_mipmaps()
         elif name in _BUILTIN_TEXELS:
             tex = self.ctx.texture((1, 1), 4, bytes(_BUILTIN_TEXELS[name]))
         else:
-            from .scene.mesh_io import file_problem
             from .scene.texture import MAX_TEXTURE_SIDE, decode_image
 
-            path = Path(name) if Path(name).is_absolute() or base is None else base / name
+            relative = not Path(name).is_absolute() and base is not None
+            path = base / name if relative else Path(name)
             problem = file_problem(path)
             if problem is not None:
-                raise ConfigError(f"texture {problem}: {path}", hint="paths in scenes resolve against the scene file")
+                # a scene's values with an image suffix are absolute by now (scene/loader.py); others are relative
+                # to the material that declares the sampler, as its defaults are
+                where = f"relative names are looked for beside the material ({base})" if relative else "check the path"
+                raise ConfigError(f"texture {problem}", path, hint=where)
             device = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
             limit = "the device's largest" if device <= MAX_TEXTURE_SIDE else "the largest read"
             try:

@@ -385,8 +385,8 @@ class Renderer:
         """The scene's draw list (matrices and materials of unchanged nodes from the draw cache)."""
         try:
             return build_draw_list(scene, self.materials, self.draw_cache)
-        except (AttributeError, TypeError):
-            scene.check_structure()  # a part of the wrong type: named here (not checked on every frame)
+        except (AttributeError, TypeError, RecursionError):
+            scene.check_structure()  # a part of the wrong type, a cycle: named here (not checked on every frame)
             raise
 
     def _frame(

@@ -361,23 +361,98 @@ def _convert(node: yaml.Node, path: tuple, lines: dict, file: str, done: dict) -
     return out
 
 
-def load_yaml_text(text: str, file: str, max_depth: int = MAX_NESTING) -> Located:
-    """Parse YAML text; syntax errors become ConfigError with the line of the problem."""
+def reader_error(exc: yaml.reader.ReaderError, text: str, file: str) -> ConfigError:
+    """A character YAML does not allow (a control character, a NUL), at its line: one line, not PyYAML's three."""
+    char = exc.character
+    code = ord(char) if isinstance(char, str) else int(char)
+    return ConfigError(
+        f"invalid YAML: character #x{code:04x} is not allowed ({exc.reason})",
+        file,
+        text.count("\n", 0, max(exc.position, 0)) + 1,
+        hint="remove it; YAML text holds no control characters but tab, line feed and carriage return",
+    )
+
+
+def _composed(text: str, file: str, max_depth: int) -> yaml.Node | None:
+    """`compose`, with syntax errors as a ConfigError of one line at the problem's line."""
     try:
-        root = compose(text, file, max_depth)
+        return compose(text, file, max_depth)
+    except yaml.reader.ReaderError as exc:
+        raise reader_error(exc, text, file) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = mark.line + 1 if mark is not None else None
         said = "; ".join(s for s in (getattr(exc, "context", None), getattr(exc, "problem", None)) if s)
-        raise ConfigError(f"invalid YAML: {said or exc}", file, line, hint="check indentation and brackets") from None
+        said = " ".join((said or str(exc)).split())  # PyYAML's own text spans lines
+        raise ConfigError(f"invalid YAML: {said}", file, line, hint="check indentation and brackets") from None
+
+
+def load_yaml_text(text: str, file: str, max_depth: int = MAX_NESTING) -> Located:
+    """Parse YAML text; syntax errors become ConfigError with the line of the problem."""
+    root = _composed(text, file, max_depth)
     lines: dict[tuple, int] = {}
     data = _convert(root, (), lines, file, {}) if root is not None else {}
     return Located(data, lines, file)
 
 
+def yaml_value(text: str, file: str, max_depth: int = MAX_NESTING):
+    """The plain value of a short YAML text (None when it holds none), read as files are: bounded, YAML 1.2 booleans."""
+    root = _composed(text, file, max_depth)
+    return None if root is None else _convert(root, (), {}, file, {})
+
+
 def _size_text(n: int) -> str:
     """Bytes as '64 KiB' or '1 MiB' (bounds are powers of two)."""
     return f"{n // 2**20} MiB" if n >= 2**20 and n % 2**20 == 0 else f"{n // 1024} KiB" if n % 1024 == 0 else f"{n} B"
+
+
+def resolved(path: Path) -> Path:
+    """`path` absolute with its links resolved; as written (made absolute) when that fails.
+
+    A symbolic-link loop makes Path.resolve raise (RuntimeError before Python 3.13): the path is
+    kept so that reading it reports the loop (`file_problem`, `read_bytes`) with the file that named it.
+    """
+    try:
+        return path.resolve()
+    except (OSError, RuntimeError):
+        return Path(os.path.abspath(path))
+
+
+def kind_problem(mode: int) -> str | None:
+    """What a file of stat mode `mode` is when it is no regular file ('is a FIFO, not a regular file'), else None."""
+    if stat.S_ISREG(mode):
+        return None
+    if stat.S_ISDIR(mode):
+        return "is a directory"
+    if stat.S_ISFIFO(mode):
+        return "is a FIFO, not a regular file"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "is a device, not a regular file"
+    return "is not a regular file"
+
+
+def file_problem(path: str | Path) -> str | None:
+    """Why `path` cannot be read as a regular file (missing, a FIFO, a device, a folder, a NUL, a loop), or None.
+
+    Checked with os.stat before any open: opening a FIFO blocks until a writer comes, forever.
+    """
+    text = os.fspath(path)
+    if "\0" in text:
+        return "contains a NUL character"
+    if not text:
+        return "is empty"
+    try:
+        mode = os.stat(text).st_mode
+    except FileNotFoundError:
+        return "not found"
+    except OSError as exc:  # a symlink loop (ELOOP), a name too long, a folder without permission
+        return exc.strerror.lower() if exc.strerror else str(exc)
+    except ValueError as exc:
+        return str(exc)
+    problem = kind_problem(mode)
+    if problem is None and not os.access(text, os.R_OK):
+        return "is not readable (permission denied)"
+    return problem
 
 
 def read_bytes(
@@ -413,9 +488,9 @@ def read_bytes(
         raise refuse(f"cannot open {what} {p}: {exc.strerror or exc}", "check the path") from None
     try:
         info = os.fstat(fd)
-        if not stat.S_ISREG(info.st_mode):
-            kind = "a directory" if stat.S_ISDIR(info.st_mode) else "not a regular file (a FIFO, device or socket)"
-            raise refuse(f"{what} {p} is {kind}", f"name a regular {what}")
+        problem = kind_problem(info.st_mode)
+        if problem is not None:
+            raise refuse(f"{what} {p} {problem}", f"name a regular {what}")
         if max_bytes is not None and info.st_size > max_bytes:
             raise refuse(
                 f"{what} {p} holds {info.st_size:,} bytes, more than {_size_text(max_bytes)}",

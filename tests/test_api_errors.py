@@ -170,6 +170,51 @@ def test_meshdata_takes_a_flat_index_list():
     assert quad(indices=np.array([0, 1, 2, 0, 2, 3], dtype=np.uint32)).indices.shape == (6,)
 
 
+CHANGED_MESHES = [
+    ("positions", np.full((4, 3), np.nan, np.float32), "positions must be finite"),
+    ("positions", np.zeros((4, 2), np.float32), r"positions must have shape \(n, 3\)"),
+    ("positions", np.zeros((4, 3)).astype(str), "positions must hold real numbers, got <U"),
+    ("normals", np.full((4, 3), 1e39), "normals hold values beyond float32's range"),
+    ("indices", np.array([[0, 1, 2_000_000_000]], dtype=np.int64), r"indices must lie in \[0, 4\)"),
+    ("indices", np.array([[0, 1, 2]], dtype=np.float32), "indices must be integers"),
+    ("texcoords", None, r"texcoords must have shape \(n, 2\), got NoneType"),
+]
+
+
+@pytest.mark.parametrize("field, value, match", CHANGED_MESHES, ids=lambda v: str(v)[:24] if isinstance(v, str) else "")
+def test_a_mesh_changed_after_it_was_drawn_is_checked_again(own, field, value, match):
+    """Replacing an array of a drawn mesh: the next render raises ConfigError naming the mesh, never draws it."""
+    mesh = quad()
+    s = simple_scene([Node("q", Transform(), mesh, MaterialInstance("unlit"))])
+    own.render(s, SIZE, SIZE)
+    setattr(mesh, field, value)
+    for _ in range(2):  # and again: the refusal is not memoised away
+        with pytest.raises(ConfigError, match=match) as info:
+            own.render(s, SIZE, SIZE)
+        assert "mesh 'bad'" in str(info.value)
+
+
+def test_a_mesh_is_checked_and_hashed_once_per_change(own, monkeypatch):
+    """Frames that draw an unchanged mesh neither check nor hash it again; replacing an array does, once."""
+    mesh = quad()
+    s = simple_scene([Node("q", Transform(), mesh, MaterialInstance("unlit"))])
+    own.render(s, SIZE, SIZE)
+    checks = []
+    monkeypatch.setattr(MeshData, "check", lambda self: checks.append(self.name))
+    for _ in range(3):
+        own.render(s, SIZE, SIZE)
+    assert checks == []
+    uploads = own.meshes.uploads
+    mesh.positions = mesh.positions * 0.5
+    for _ in range(3):
+        own.render(s, SIZE, SIZE)
+    assert checks == ["bad"] and own.meshes.uploads == uploads + 1
+
+
+def test_a_flat_index_list_counts_its_triangles():
+    assert quad(indices=np.array([0, 1, 2, 0, 2, 3], dtype=np.uint32)).triangle_count == 2
+
+
 # ------------------------------------------------------------------ lights and background
 @pytest.mark.parametrize(
     "fields, key",
@@ -181,11 +226,32 @@ def test_meshdata_takes_a_flat_index_list():
         (dict(type="directional", direction=(0.0, 0.0, 0.0)), "direction"),
         (dict(type="spot", direction=(math.nan, -1.0, 0.0)), "direction"),
         (dict(type="laser"), "type"),
+        (dict(intensity=-1.0), "intensity"),
+        (dict(color=(1.0, -0.5, 0.0)), "color"),
+        (dict(type="point", radius=0.0), "radius"),
+        (dict(type="spot", radius=-1.0), "radius"),
+        (dict(type="spot", inner_angle_deg=80.0, outer_angle_deg=10.0), "inner_angle_deg"),
+        (dict(type="spot", inner_angle_deg=-1.0), "inner_angle_deg"),
+        (dict(type="spot", outer_angle_deg=95.0), "outer_angle_deg"),
     ],
 )
 def test_light_refuses_unusable_values_at_construction(fields, key):
     with pytest.raises(ConfigError, match=rf"'light\.{key}'"):
         Light(**fields)
+
+
+def test_unused_light_fields_are_not_held_to_ranges():
+    """A directional light has no radius or cone: values there are not refused (they draw nothing)."""
+    assert Light(type="directional", radius=-1.0, outer_angle_deg=120.0).radius == -1.0
+
+
+@pytest.mark.parametrize("field, value", [("radius", 0.0), ("outer_angle_deg", 90.0), ("intensity", -2.0)])
+def test_light_range_changed_after_construction_is_refused_at_render(own, field, value):
+    s = scene()
+    s.lights = [Light(type="spot", position=(0.0, 0.0, 3.0), direction=(0.0, 0.0, -1.0))]
+    setattr(s.lights[0], field, value)
+    with pytest.raises(ConfigError, match=rf"'lights\[0\]\.{field}'"):
+        own.render(s, SIZE, SIZE)
 
 
 def test_light_changed_after_construction_is_refused_at_render(own):
@@ -299,6 +365,9 @@ def test_renderer_arguments_of_the_wrong_kind(own, tmp_path):
         (lambda s: setattr(s.nodes[0], "transform", None), r"'nodes\[0\]\.transform': must be a Transform"),
         (lambda s: setattr(s.nodes[0], "material", "unlit"), r"'nodes\[0\]\.material': must be a MaterialInstance"),
         (lambda s: s.nodes[0].children.append("x"), r"'nodes\[0\]\.children\[0\]': must be a Node"),
+        (lambda s: setattr(s.nodes[0].material, "description", 5), r"'nodes\[0\]\.material\.description': must be"),
+        (lambda s: setattr(s.nodes[0].material, "uniforms", [1]), r"'nodes\[0\]\.material\.uniforms': must be a dict"),
+        (lambda s: s.nodes[0].children.append(s.nodes[0]), r"'nodes\[0\]\.children\[0\]': is a node that contains it"),
     ],
 )
 def test_scene_parts_of_the_wrong_type_are_named(own, make, key):
@@ -315,3 +384,93 @@ def test_transform_values_must_be_finite():
     with pytest.raises(ConfigError, match="'Transform.scale'"):
         Transform(scale=(1.0, 1.0))
     assert Node(transform=Transform(translation=np.float32([1, 2, 3])), material=MaterialInstance()).mesh is None
+
+
+@pytest.mark.parametrize(
+    "field, value",
+    [("translation", "abc"), ("rotation_deg", (1.0, "x", 0.0)), ("scale", (math.nan, 1.0, 1.0)), ("scale", 3)],
+)
+def test_transform_values_changed_after_construction_are_named_with_the_node(own, field, value):
+    s = scene()
+    setattr(s.nodes[0].transform, field, value)
+    with pytest.raises(ConfigError, match=rf"'q\.transform\.{field}': must be 3 finite numbers"):
+        own.render(s, SIZE, SIZE)
+
+
+def test_meshes_without_triangles_draw_nothing(own):
+    """An empty MeshData, or vertices without triangles, is drawn as nothing (it was an empty GPU buffer)."""
+    empty = MeshData(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 2)), np.zeros((0, 3), np.uint32), "empty")
+    points = MeshData(np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 2)), np.zeros((0, 3), np.uint32), "points")
+    reference = own.render(scene(), SIZE, SIZE).image
+    s = scene()
+    s.nodes += [Node("e", Transform(), empty, MaterialInstance("unlit")), Node("p", Transform(), points)]
+    frame = own.render(s, SIZE, SIZE)
+    assert np.array_equal(frame.image, reference) and frame.stats["draws"] == 1
+
+
+@pytest.mark.parametrize("path", [123, None, b"/tmp/scene.yaml", ["a.yaml"]])
+def test_load_names_an_argument_that_is_not_a_path(path):
+    from guaca_py import load
+    from guaca_py.errors import ArgumentError
+
+    with pytest.raises(ArgumentError, match="'path': load takes a file path") as info:
+        load(path)
+    assert isinstance(info.value, TypeError)
+
+
+@pytest.mark.parametrize(
+    "pixels, match",
+    [
+        (np.zeros((2, 2, 2, 2)), r"must be \(H, W\[, 1-4\]\) pixels"),
+        (np.zeros((1, 16385), np.uint8), "is 16385x1; the largest texture is 16384x16384"),
+        (np.array([["a"]]), "must hold numbers"),
+    ],
+    ids=["4d", "too-wide", "text"],
+)
+def test_texture_image_refuses_what_is_no_image(pixels, match):
+    from guaca_py.scene.texture import TextureImage
+
+    with pytest.raises(ConfigError, match=match) as info:
+        TextureImage(pixels, "img")
+    assert isinstance(info.value, ValueError) and "'TextureImage 'img''" in str(info.value)
+
+
+def test_an_image_wider_than_the_device_takes_is_refused_before_upload():
+    """The driver would make an incomplete texture (llvmpipe: without an error) that samples as black."""
+    from types import SimpleNamespace
+
+    from guaca_py.errors import LimitError
+    from guaca_py.gpu_resources import TextureCache
+    from guaca_py.scene.texture import TextureImage
+
+    small_device = SimpleNamespace(info={"GL_MAX_TEXTURE_SIZE": 8})  # no texture is made: the check comes first
+    with pytest.raises(LimitError, match="is 16x4; the device's largest texture is 8x8"):
+        TextureCache(small_device).get(TextureImage(np.zeros((4, 16, 4), np.uint8), "wide"))
+
+
+def test_a_cycle_below_the_roots_is_named():
+    a, b = Node("a"), Node("b")
+    a.children.append(b)
+    b.children.append(a)
+    s = scene()
+    s.nodes[0].children.append(a)
+    with pytest.raises(ConfigError, match=r"'nodes\[0\]\.children\[0\]\.children\[0\]\.children\[0\]': is a node that"):
+        s.check_structure()
+
+
+def test_a_node_tree_too_deep_to_walk_is_refused_and_a_shared_node_drawn_twice(own):
+    from guaca_py.scene.graph import MAX_TREE_DEPTH
+
+    s = scene()
+    s.nodes.append(s.nodes[0])  # the same node twice: two draws, no cycle
+    assert own.render(s, SIZE, SIZE).stats["draws"] == 2
+    node = s.nodes[0]
+    for i in range(MAX_TREE_DEPTH):
+        child = Node(f"n{i}")
+        node.children.append(child)
+        node = child
+    with pytest.raises(
+        ConfigError,
+        match=rf"nodes\[0\]\.\(\.\.\.{MAX_TREE_DEPTH - 1} levels\.\.\.\)\.children\[0\]': nodes nested deeper than {MAX_TREE_DEPTH}",
+    ):
+        own.render(s, SIZE, SIZE)

@@ -318,6 +318,16 @@ def test_an_output_never_replaces_an_input_or_a_special_file(textured, outputs, 
     assert snapshot(textured) == before and "rendered" not in r.stdout
 
 
+def test_a_fifo_named_as_the_scene_is_refused_by_what_it_is(textured):
+    """Exit 2 at once (never blocking on the FIFO) with one line naming it: not 'not found'."""
+    import os
+
+    os.mkfifo(textured / "fifo.yaml")
+    r = guaca("render", "fifo.yaml", "--out", "o.png", cwd=textured, timeout=60)
+    one_error_line(r, "fifo.yaml: scene file is a FIFO, not a regular file")
+    assert not (textured / "o.png").exists()
+
+
 def test_outputs_keep_modes_and_write_through_links(textured):
     """A replaced image keeps its mode; --stats through a link replaces the link's target, the link stays."""
     import os
@@ -349,7 +359,7 @@ def test_outputs_keep_modes_and_write_through_links(textured):
         (["render", "--set", "max_steps=99999999999999999999"], ["--set max_steps=99999999999999999999", "32-bit"]),
         (["view", "--headless", "--width", "0"], ["--width: must be >= 1, got 0"]),  # was: cannot open a window
         (["view", "--headless", "--height", "-3"], ["--height: must be >= 1, got -3"]),
-        (["view", "--headless", "--frames", "-1"], ["--frames: must be >= 0"]),
+        (["view", "--headless", "--frames", "-1"], ["--frames: must be in [0, 1e+06], got -1"]),
         (["view", "--headless", "--screenshot", "shot"], ["'--screenshot': cannot tell the image format"]),
         (["view", "--headless", "--screenshot", "scene.yaml"], ["'--screenshot'", "from '.yaml'"]),
         (["view", "--headless", "--screenshot", "tex.png"], ["'--screenshot': is an input of this run"]),
@@ -429,6 +439,58 @@ def test_ctrl_c_exits_130_with_one_line(textured, command, module, name):
     r = guaca(*command, cwd=textured, prelude=INTERRUPT.format(module=module, name=name))
     assert r.returncode == 130 and r.stderr == "interrupted\n", r.stderr
     assert snapshot(textured) == before
+
+
+def launched(*args, cwd, prelude: str = "") -> subprocess.Popen:
+    """`guaca ARGS` started as its console script does (`from guaca_launcher import main`), after `prelude`."""
+    import os
+
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, (str(ROOT), os.environ.get("PYTHONPATH")))))
+    code = f"{prelude}\nimport sys\nfrom guaca_launcher import main\nsys.exit(main())"
+    cmd = [sys.executable, "-c", code, *map(str, args)]
+    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=cwd)
+
+
+def test_the_console_script_is_the_launcher():
+    import tomllib
+
+    scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
+    assert scripts == {"guaca": "guaca_launcher:main"}
+
+
+CTRL_C_WHEN_IMPORTED = """
+import os, signal, sys
+class CtrlC:
+    def find_spec(self, name, path=None, target=None):
+        if name == {module!r}:
+            os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C while the module is being imported
+        return None
+sys.meta_path.insert(0, CtrlC())
+"""
+
+
+@pytest.mark.parametrize("module", ["numpy", "moderngl", "guaca_py.methods", "guaca_py.cli"])
+def test_ctrl_c_while_guaca_imports_exits_130_with_one_line(textured, module):
+    """Before guaca_py.cli.main runs, the launcher owns Ctrl-C: status 130, 'interrupted', no traceback."""
+    before = snapshot(textured)
+    p = launched(*RUN, "--out", "o.png", cwd=textured, prelude=CTRL_C_WHEN_IMPORTED.format(module=module))
+    out, err = p.communicate(timeout=120)
+    assert p.returncode == 130 and err == "interrupted\n", err
+    assert snapshot(textured) == before
+
+
+@pytest.mark.parametrize("delay", [0.1, 0.25, 0.5])
+def test_ctrl_c_early_in_the_command_exits_130_with_one_line(textured, delay):
+    """A real SIGINT some time after the start, wherever it lands (imports, loading, the render)."""
+    import signal
+    import time
+
+    p = launched(*RUN, "--out", "o.png", cwd=textured)
+    time.sleep(delay)
+    p.send_signal(signal.SIGINT)
+    out, err = p.communicate(timeout=120)
+    assert "Traceback" not in err and p.returncode in (0, 130), err
+    assert err == "interrupted\n" if p.returncode == 130 else (textured / "o.png").is_file()
 
 
 @pytest.mark.parametrize("sig,status,stderr", [("SIGTERM", -15, ""), ("SIGINT", 130, "interrupted\n")])

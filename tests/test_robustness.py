@@ -138,8 +138,8 @@ def test_pass_listed_twice(tmp_path, capsys):
     [
         (["--width", -5], ["--width", "must be >= 1, got -5"]),
         (["--width", 0, "--height", 0], ["--width", "must be >= 1, got 0"]),
-        (["--frames", 0], ["--frames", "must be >= 1"]),
-        (["--warmup", -1], ["--warmup", "must be >= 0"]),
+        (["--frames", 0], ["--frames", "must be in [1, 1e+06], got 0"]),
+        (["--warmup", -1], ["--warmup", "must be in [0, 1e+06], got -1"]),
         (["--materials", "no/such/dir"], ["--materials", "material directory not found"]),
         (["--set", "max_steps=0"], ["transparency.max_steps", "must be > 0"]),
         (["--set", "max_regrow=-5"], ["transparency.max_regrow", "must be >= 0"]),
@@ -151,6 +151,28 @@ def test_bad_option_exits_2_naming_it(tmp_path, capsys, args, needles):
     s = write(tmp_path / "s.yaml", scene_text(layer(0)))
     rc, _, err = run([s, "--out", tmp_path / "o.png", *args], capsys)
     expect_error(rc, err, *needles)
+
+
+@pytest.mark.parametrize(
+    "args,needles",
+    [
+        (["--set", "threshold=!!python/object/apply:os.system [x]"], ["cannot read", "unsupported YAML tag"]),
+        (["--set", "threshold=[1, ["], ["cannot read", "invalid YAML"]),
+        (["--set", "threshold=*a"], ["cannot read", "undefined alias 'a'"]),
+        (["--set", "threshold=" + "[" * 10000], ["cannot read '[[[", "...': invalid YAML"]),
+        (["--set", "threshold=a\0b"], ["cannot read", "character #x0000 is not allowed"]),
+        (["--frames", 10**10], ["--frames", "must be in [1, 1e+06], got 10000000000"]),
+        (["--warmup", 10**7], ["--warmup", "must be in [0, 1e+06]"]),
+    ],
+    ids=["python-tag", "syntax", "alias", "deep", "nul", "frames", "warmup"],
+)
+def test_bad_set_value_or_frame_count_is_one_line(tmp_path, capsys, args, needles):
+    """A --set value is read as a pipeline file's values are (bounded, plain tags) and refused in one line;
+    a frame count of ten digits is refused instead of running for months."""
+    s = write(tmp_path / "s.yaml", scene_text(layer(0)))
+    rc, _, err = run([s, "--out", tmp_path / "o.png", *args], capsys)
+    expect_error(rc, err, *needles)
+    assert err.count("\n") == 1, err
 
 
 @pytest.mark.parametrize(

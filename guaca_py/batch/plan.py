@@ -19,9 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import ConfigError
 from ..scene.graph import Camera, Scene, Transform
-from ..scene.loader import TEXTURE_SUFFIXES
-from ..scene.texture import TextureImage
+from ..scene.texture import TEXTURE_SUFFIXES, TextureImage, decode_image
 from .job import Job, Keyframe
 
 CAMERA_FIELDS = ("position", "target", "up", "fov_y", "near", "far")
@@ -67,8 +67,6 @@ def apply_task(scene: Scene, task: Task) -> None:
 
 def self_contained(scene: Scene) -> Scene:
     """`scene` with every texture file a material names read into memory, so no worker needs the file."""
-    from PIL import Image
-
     images: dict[str, TextureImage] = {}
     for node, _ in scene.walk():
         mat = node.material
@@ -76,9 +74,12 @@ def self_contained(scene: Scene) -> Scene:
             continue
         for name, value in list(mat.uniforms.items()):
             if isinstance(value, str) and value.lower().endswith(TEXTURE_SUFFIXES):
-                if value not in images:  # the same decode as TextureCache: RGBA, row 0 at the top
-                    with Image.open(value) as img:
-                        images[value] = TextureImage(np.asarray(img.convert("RGBA")), Path(value).name)
+                if value not in images:  # the same decode as TextureCache: RGBA, row 0 at the top, bounded
+                    try:
+                        pixels = decode_image(value, value)
+                    except ValueError as exc:
+                        raise ConfigError(str(exc), value, hint="use a PNG or JPEG file") from None
+                    images[value] = TextureImage(pixels, Path(value).name)
                 mat.uniforms[name] = images[value]
     return scene
 

@@ -14,7 +14,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..numeric import Range, gpu_number_problem, number_hint
 from ..shaders.slots import Texture
-from ..yaml_source import MAX_CONFIG_BYTES, MAX_NESTING, read_text
+from ..yaml_source import MAX_CONFIG_BYTES, MAX_NESTING, read_text, resolved
 from . import glsl
 
 #: sampler2D uniforms a material may declare: each takes its own texture unit of Texture.MATERIALS
@@ -245,7 +245,7 @@ def _method(entry, stage: str, i: int, path: Path, text: str, search_from: int) 
             raise ConfigError(f"'file' must be a path to a .glsl file, got {given!r}", path, line, key)
         src_path = path.parent / given
         if "\0" not in given:
-            src_path = src_path.resolve()
+            src_path = resolved(src_path)
         source = read_text(src_path, path, line, key, max_bytes=glsl.MAX_CODE_BYTES, what="method source file")
         file, first = src_path, 1
     else:

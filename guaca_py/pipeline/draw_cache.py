@@ -66,6 +66,7 @@ class DrawCache:
         hit = self._worlds.get(key)
         if hit is not None:
             return hit
+        transform.check()  # values changed since construction (a NaN, a string) are named, once per change
         local = transform.glm_matrix()
         world = local if parent_world is None else parent_world * local
         # column-major float32 bytes, as mat_bytes() writes them

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..materials import MaterialDescription, MaterialRegistry
-from ..scene.graph import MAX_WORLD, MeshData, Scene
+from ..scene.graph import MAX_TREE_DEPTH, MAX_WORLD, MeshData, Scene
 from ..shaders import mat_bytes, set_uniform, uniform_names
 from .draw_cache import material_key
 
@@ -35,11 +35,25 @@ class Draw:
 
 
 def _mesh_reach(mesh) -> float:
-    """Largest absolute object-space coordinate, computed once per mesh (meshes are immutable once loaded)."""
-    reach = mesh.__dict__.get("_guaca_reach")
-    if reach is None:
-        reach = mesh.__dict__["_guaca_reach"] = float(np.abs(mesh.positions).max()) if len(mesh.positions) else 0.0
-    return reach
+    """Largest absolute object-space coordinate, computed once per mesh content.
+
+    Every frame asks for it before anything reads the mesh, so a mesh whose arrays were replaced
+    is checked again here (MeshData.derived), before its arrays reach the GPU.
+    """
+    return mesh.derived("reach", _reach)
+
+
+def _reach(mesh) -> float:
+    return float(np.abs(mesh.positions).max()) if len(mesh.positions) else 0.0
+
+
+def _drawn(node) -> bool:
+    """The node has a mesh with triangles (its arrays checked again when replaced): one without draws nothing."""
+    return node.mesh is not None and node.mesh.derived("triangles", _triangles) > 0
+
+
+def _triangles(mesh) -> int:
+    return mesh.triangle_count
 
 
 def check_world_extents(placed: list[tuple]) -> None:
@@ -88,7 +102,7 @@ def build_draw_list(scene: Scene, materials: MaterialRegistry, cache=None) -> li
     draws: list[Draw] = []
     placed: list[tuple] = []
     for node, world in scene.walk():
-        if node.mesh is None:
+        if not _drawn(node):
             continue
         desc, values, transparent = _resolve_material(node.material, scene, materials)
         draws.append(Draw(len(draws), node.name, node.mesh, desc, values, world, transparent))
@@ -103,9 +117,17 @@ def _build_cached(scene: Scene, materials: MaterialRegistry, cache) -> list[Draw
     def resolver(inst):
         return lambda: _resolve_material(inst, scene, materials)
 
-    def visit(node, parent_key, parent_world):
-        key, world_glm, world, model_bytes, normal_bytes = cache.world(parent_key, parent_world, node.transform)
-        if node.mesh is not None:
+    def visit(node, parent_key, parent_world, depth=1):
+        if depth > MAX_TREE_DEPTH:  # a cycle, or a tree too deep to recurse through: named by the tree's check
+            scene.check_structure()
+            raise ConfigError(f"nodes nested deeper than {MAX_TREE_DEPTH} levels", key="nodes")
+        try:
+            key, world_glm, world, model_bytes, normal_bytes = cache.world(parent_key, parent_world, node.transform)
+        except ConfigError as exc:  # a transform value changed since construction: named with its node
+            file, line = getattr(node, "source", (None, None))
+            key = exc.key.replace("Transform", f"{node.name}.transform") if exc.key else None
+            raise ConfigError(exc.reason, file, line, key, exc.hint) from None
+        if _drawn(node):
             placed.append((node, world))
             inst = node.material
             desc, values, transparent = cache.material(material_key(inst, scene.source), resolver(inst))
@@ -113,7 +135,7 @@ def _build_cached(scene: Scene, materials: MaterialRegistry, cache) -> list[Draw
                 Draw(len(draws), node.name, node.mesh, desc, values, world, transparent, model_bytes, normal_bytes)
             )
         for child in node.children:
-            visit(child, key, world_glm)
+            visit(child, key, world_glm, depth + 1)
 
     placed: list[tuple] = []
     for root in scene.nodes:

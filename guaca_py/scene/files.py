@@ -10,10 +10,11 @@ from __future__ import annotations
 import weakref
 from pathlib import Path
 
+from ..yaml_source import file_problem
 from .framing import camera_and_lights
 from .gltf import GLTF_SUFFIXES, load_gltf
 from .graph import Scene
-from .mesh_io import check_file, file_error, file_problem, load_checked
+from .mesh_io import check_file, file_error, load_checked
 from .nodes import Node
 from .trimesh_scene import nodes_from_trimesh
 

@@ -184,8 +184,39 @@ def _check_camera(cam: dict, where: str, fail) -> None:
             )
 
 
+_TEXTURE_SLOTS = (
+    "pbrMetallicRoughness.baseColorTexture",
+    "pbrMetallicRoughness.metallicRoughnessTexture",
+    "normalTexture",
+    "occlusionTexture",
+    "emissiveTexture",
+)
+
+
+def _check_textures(doc: dict, fail) -> None:
+    """Every texture a material names exists, and every texture's image and sampler (trimesh drops a dangling one)."""
+    textures, images = _items(doc, "textures", fail), _items(doc, "images", fail)
+    samplers = _items(doc, "samplers", fail)
+    for i, mat in enumerate(_items(doc, "materials", fail)):
+        for slot in _TEXTURE_SLOTS:
+            ref = mat
+            for part in slot.split("."):
+                ref = ref.get(part) if isinstance(ref, dict) else None
+            if ref is None:
+                continue
+            if not isinstance(ref, dict):
+                raise fail(f"materials[{i}].{slot} must be an object with an index", "export the file again")
+            _index(ref.get("index"), len(textures), f"materials[{i}].{slot}.index", fail)
+    for t, texture in enumerate(textures):
+        if "source" in texture:
+            _index(texture["source"], len(images), f"textures[{t}].source", fail)
+        if "sampler" in texture:
+            _index(texture["sampler"], len(samplers), f"textures[{t}].sampler", fail)
+
+
 def _check_materials(doc: dict, fail) -> None:
     """Material factors finite and in range (a NaN alpha or colour renders as nothing or noise)."""
+    _check_textures(doc, fail)
     for i, mat in enumerate(_items(doc, "materials", fail)):
         pbr = mat.get("pbrMetallicRoughness", {})
         pbr = pbr if isinstance(pbr, dict) else {}
@@ -220,12 +251,6 @@ def _check_document(p: Path, doc: dict, binary: bytes | None, fail) -> None:
     for i, buf in enumerate(_items(doc, "buffers", fail)):
         if "uri" in buf:
             _check_uri(buf["uri"], p.parent, f"buffers[{i}].uri", fail)
-    for i, acc in enumerate(_items(doc, "accessors", fail)):
-        if "sparse" in acc:
-            raise fail(
-                f"accessors[{i}] is a sparse accessor, which guaca_py does not read",
-                "export the file without sparse accessors (most exporters have an option)",
-            )
     _check_accessors(p, doc, binary, fail)
     nodes = _items(doc, "nodes", fail)
     _check_nodes(doc, nodes, fail)
@@ -292,6 +317,8 @@ def _check_accessors(p: Path, doc: dict, binary: bytes | None, fail) -> None:
             raise fail(
                 f"accessors[{i}] needs a count, a type and a componentType glTF defines", "export the file again"
             )
+        if "sparse" in acc:
+            _check_sparse(i, acc, views, fail)
         if "bufferView" not in acc or count == 0:
             continue
         v = _index(acc["bufferView"], len(views), f"accessors[{i}].bufferView", fail)
@@ -302,6 +329,11 @@ def _check_accessors(p: Path, doc: dict, binary: bytes | None, fail) -> None:
             raise fail(
                 f"accessors[{i}] byteOffset and byteStride must be non-negative integers", "export the file again"
             )
+        if stride < element:  # elements would overlap (0: every element the first)
+            raise fail(
+                f"bufferViews[{v}].byteStride {stride} is less than an element of accessors[{i}] ({element} bytes)",
+                "export the file again",
+            )
         if offset + stride * (count - 1) + element > views[v]["byteLength"]:
             raise fail(
                 f"accessors[{i}] ({count} x {kind}) reaches past bufferViews[{v}] ({views[v]['byteLength']} bytes)",
@@ -309,7 +341,41 @@ def _check_accessors(p: Path, doc: dict, binary: bytes | None, fail) -> None:
             )
 
 
-_COMPONENT = {5121: np.uint8, 5123: np.uint16, 5125: np.uint32}  # index component types
+def _check_sparse(i: int, acc: dict, views: list, fail) -> None:
+    """A sparse accessor's count, index type and both arrays within their buffer views (spec 3.6.2.3)."""
+    sparse, where = acc["sparse"], f"accessors[{i}].sparse"
+    if not (
+        isinstance(sparse, dict)
+        and _natural(sparse.get("count"))
+        and sparse["count"] >= 1
+        and isinstance(sparse.get("indices"), dict)
+        and isinstance(sparse.get("values"), dict)
+    ):
+        raise fail(f"{where} needs a count of at least 1, indices and values", "export the file again")
+    n = sparse["count"]
+    if n > acc["count"]:
+        raise fail(f"{where}.count {n} exceeds the accessor's count {acc['count']}", "export the file again")
+    comp = sparse["indices"].get("componentType")
+    if comp not in _INDEX_TYPES:
+        raise fail(
+            f"{where}.indices.componentType = {comp!r} is not 5121, 5123 or 5125 (an unsigned byte, short or int)",
+            "export the file again",
+        )
+    element = _TYPE_COMPONENTS[acc["type"]] * _COMPONENT_BYTES[acc["componentType"]]
+    for part, size in (("indices", _COMPONENT_BYTES[comp]), ("values", element)):
+        spec = sparse[part]
+        v = _index(spec.get("bufferView"), len(views), f"{where}.{part}.bufferView", fail)
+        offset = spec.get("byteOffset", 0)
+        if not _natural(offset) or offset + n * size > views[v]["byteLength"]:
+            raise fail(
+                f"{where}.{part} ({n} x {size} bytes from byteOffset {offset!r}) reaches past bufferViews[{v}] "
+                f"({views[v]['byteLength']} bytes)",
+                "export the file again",
+            )
+
+
+_DTYPES = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
+_INDEX_TYPES = (5121, 5123, 5125)  # unsigned byte, short, int: what indices may be
 
 
 def _buffer_bytes(p: Path, doc: dict, binary: bytes | None, i: int) -> bytes:
@@ -325,16 +391,70 @@ def _buffer_bytes(p: Path, doc: dict, binary: bytes | None, i: int) -> bytes:
     return (p.parent / unquote(uri)).read_bytes()
 
 
-def _strip_and_fan_indices(p: Path, doc: dict, binary: bytes | None, prim: dict, mode: int) -> np.ndarray:
+def _view_rows(p: Path, doc: dict, binary: bytes | None, view: int, offset: int, count: int, row: int, stride=None):
+    """`count` rows of `row` bytes from bufferViews[view] at `offset`, `stride` apart (tightly packed when None)."""
+    bv = doc["bufferViews"][view]
+    data = _buffer_bytes(p, doc, binary, bv.get("buffer", 0))
+    stride = stride or row
+    start = bv.get("byteOffset", 0) + offset
+    if count == 0:
+        return np.zeros((0, row), np.uint8)
+    flat = np.frombuffer(data, np.uint8, (count - 1) * stride + row, start)
+    return np.lib.stride_tricks.as_strided(flat, (count, row), (stride, 1)).copy()
+
+
+def _accessor_array(p: Path, doc: dict, binary: bytes | None, i: int, fail) -> np.ndarray:
+    """accessors[i] (checked already) as a (count, components) array of its type, sparse substitutions applied.
+
+    A sparse accessor without a bufferView starts from zeros (spec 3.6.2.3); a substituted
+    index at or past the accessor's count is a located error.
+    """
+    acc = doc["accessors"][i]
+    dtype, n, count = np.dtype(_DTYPES[acc["componentType"]]), _TYPE_COMPONENTS[acc["type"]], acc["count"]
+    if "bufferView" in acc:
+        view = doc["bufferViews"][acc["bufferView"]]
+        rows = _view_rows(
+            p,
+            doc,
+            binary,
+            acc["bufferView"],
+            acc.get("byteOffset", 0),
+            count,
+            n * dtype.itemsize,
+            view.get("byteStride"),
+        )
+        out = rows.view(dtype).reshape(count, n)
+    else:
+        out = np.zeros((count, n), dtype)
+    sparse = acc.get("sparse")
+    if sparse:
+        m, at, values = sparse["count"], sparse["indices"], sparse["values"]
+        index_type = np.dtype(_DTYPES[at["componentType"]])
+        idx = _view_rows(p, doc, binary, at["bufferView"], at.get("byteOffset", 0), m, index_type.itemsize)
+        idx = idx.view(index_type).reshape(m).astype(np.int64)
+        if int(idx.max()) >= count:
+            raise fail(
+                f"accessors[{i}].sparse.indices holds {int(idx.max())}, not below the accessor's count {count}",
+                "export the file again",
+            )
+        vals = _view_rows(p, doc, binary, values["bufferView"], values.get("byteOffset", 0), m, n * dtype.itemsize)
+        out[idx] = vals.view(dtype).reshape(m, n)
+    return out
+
+
+def _as_float(acc: dict, data: np.ndarray) -> np.ndarray:
+    """An integer vertex attribute as float32: `normalized` ones scaled to [0, 1] (or [-1, 1]) as the spec says."""
+    if data.dtype.kind == "f" or not acc.get("normalized"):
+        return data.astype(np.float32)
+    top = float(np.iinfo(data.dtype).max)
+    return np.maximum(data.astype(np.float64) / top, -1.0).astype(np.float32)
+
+
+def _strip_and_fan_indices(p: Path, doc: dict, binary: bytes | None, prim: dict, mode: int, fail) -> np.ndarray:
     """The triangle-list indices of a TRIANGLE_STRIP (5) or TRIANGLE_FAN (6) primitive (spec 3.7.2.1)."""
     accessors = doc["accessors"]
     if "indices" in prim:
-        acc = accessors[prim["indices"]]
-        view = doc["bufferViews"][acc["bufferView"]]
-        dtype = np.dtype(_COMPONENT[acc["componentType"]]).newbyteorder("<")
-        data = _buffer_bytes(p, doc, binary, view.get("buffer", 0))
-        start = view.get("byteOffset", 0) + acc.get("byteOffset", 0)
-        idx = np.frombuffer(data, dtype, acc["count"], start).astype(np.int64)
+        idx = _accessor_array(p, doc, binary, prim["indices"], fail).reshape(-1).astype(np.int64)
     else:
         idx = np.arange(accessors[prim["attributes"]["POSITION"]]["count"], dtype=np.int64)
     n = len(idx) - 2
@@ -350,51 +470,91 @@ def _strip_and_fan_indices(p: Path, doc: dict, binary: bytes | None, prim: dict,
     return tris.astype(np.uint32)
 
 
-def _triangulated(p: Path, doc: dict, binary: bytes | None, fail) -> dict | None:
-    """A copy of `doc` whose strip and fan primitives are triangle lists (in a data: buffer), or None when none are."""
+def _append_accessor(out: dict, data: np.ndarray, fields: dict) -> dict:
+    """An accessor over `data` in a new data: buffer of `out`, with `fields` (its type, min, max...)."""
+    raw = np.ascontiguousarray(data).tobytes()
+    out["buffers"].append({"byteLength": len(raw), "uri": _DATA_PREFIX + base64.b64encode(raw).decode()})
+    out["bufferViews"].append({"buffer": len(out["buffers"]) - 1, "byteLength": len(raw)})
+    return {**fields, "bufferView": len(out["bufferViews"]) - 1, "byteOffset": 0}
+
+
+_DATA_PREFIX = "data:application/octet-stream;base64,"
+#: vertex attributes trimesh reads as numbers: an integer one (a normalized TEXCOORD or COLOR) is
+#: handed to it as floats, which trimesh would otherwise use raw (u8 texture coordinates 0..255)
+_FLOAT_ATTRIBUTES = ("POSITION", "NORMAL", "TEXCOORD_", "COLOR_")
+
+
+def _rewritten(p: Path, doc: dict, binary: bytes | None, fail) -> dict | None:
+    """A copy of `doc` in the form trimesh reads correctly, or None when `doc` is already in it.
+
+    Sparse accessors become dense, integer vertex attributes floats (normalized ones scaled),
+    strip and fan primitives triangle lists; each rewritten accessor's data goes in a data:
+    buffer of its own. A file without scenes gets one of its root nodes.
+    """
     import copy
 
-    found = [
-        (m, k)
+    accessors = _items(doc, "accessors", fail)
+    prims = [
+        (m, k, prim)
         for m, mesh in enumerate(_items(doc, "meshes", fail))
         for k, prim in enumerate(mesh.get("primitives", []) if isinstance(mesh.get("primitives"), list) else [])
-        if isinstance(prim, dict) and prim.get("mode") in (5, 6)
+        if isinstance(prim, dict)
     ]
-    if not found:
+    attributes = {
+        a
+        for _, _, prim in prims
+        if isinstance(prim.get("attributes"), dict)
+        for name, a in prim["attributes"].items()
+        if name.startswith(_FLOAT_ATTRIBUTES) and _natural(a) and a < len(accessors)
+    }
+    dense = [i for i, acc in enumerate(accessors) if "sparse" in acc]
+    floats = [i for i in sorted(attributes) if accessors[i].get("componentType") != 5126]
+    strips = [(m, k) for m, k, prim in prims if prim.get("mode") in (5, 6)]
+    nodes = _items(doc, "nodes", fail)
+    sceneless = not doc.get("scenes") and bool(nodes)  # trimesh then reads nothing at all
+    if not (dense or floats or strips or sceneless):
         return None
     out = copy.deepcopy(doc)
+    if sceneless:  # every node that is no other's child is a root, as for the file's camera (camera_node)
+        children = {c for n in nodes for c in n.get("children", [])}
+        out["scenes"], out["scene"] = [{"nodes": [i for i in range(len(nodes)) if i not in children]}], 0
     for key in ("buffers", "bufferViews", "accessors"):
         out.setdefault(key, [])
-    for m, k in found:
+    for i in sorted(set(dense) | set(floats)):
+        acc = accessors[i]
+        data = _accessor_array(p, doc, binary, i, fail)
+        fields = {k: v for k, v in acc.items() if k not in ("sparse", "bufferView", "byteOffset")}
+        if i in floats:
+            data = _as_float(acc, data)
+            fields.update(componentType=5126, normalized=False)
+            fields.pop("min", None), fields.pop("max", None)  # bounds of the integers, not of the floats
+        out["accessors"][i] = _append_accessor(out, data, fields)
+    for m, k in strips:
         prim = out["meshes"][m]["primitives"][k]
         try:
-            tris = _strip_and_fan_indices(p, doc, binary, prim, prim["mode"])
+            tris = _strip_and_fan_indices(p, out, binary, prim, prim["mode"], fail)
         except (KeyError, IndexError, TypeError, ValueError, OSError) as exc:
             raise fail(
                 f"meshes[{m}].primitives[{k}]: cannot read its indices ({exc})", "export the file again"
             ) from None
-        data = tris.tobytes()
-        out["buffers"].append(
-            {"byteLength": len(data), "uri": "data:application/octet-stream;base64," + base64.b64encode(data).decode()}
-        )
-        out["bufferViews"].append({"buffer": len(out["buffers"]) - 1, "byteLength": len(data)})
         out["accessors"].append(
-            {"bufferView": len(out["bufferViews"]) - 1, "componentType": 5125, "count": tris.size, "type": "SCALAR"}
+            _append_accessor(out, tris, {"componentType": 5125, "count": tris.size, "type": "SCALAR"})
         )
         prim["indices"], prim["mode"] = len(out["accessors"]) - 1, 4
     return out
 
 
 def _load_trimesh(p: Path, doc: dict, binary: bytes | None, fail):
-    """trimesh's scene of the file; strip and fan primitives are handed to it as triangle lists."""
+    """trimesh's scene of the file; what it would misread is handed to it rewritten (`_rewritten`)."""
     import io
 
     import trimesh
 
-    rewritten = _triangulated(p, doc, binary, fail)
+    rewritten = _rewritten(p, doc, binary, fail)
     if rewritten is None:
-        # a binary glTF under another name is read by its magic bytes (files.py: model_kind)
-        kind = p.suffix.lower().lstrip(".") if p.suffix.lower() in GLTF_SUFFIXES else "glb"
+        # the container by its magic bytes, not its name (a binary glTF named .gltf, JSON named .glb)
+        with p.open("rb") as f:
+            kind = "glb" if f.read(4) == b"glTF" else "gltf"
         return trimesh.load(str(p), file_type=kind, force="scene", process=False)
     text = json.dumps(rewritten).encode()
     if binary is None:

@@ -14,6 +14,7 @@ import numpy as np
 from ..errors import ConfigError
 from .nodes import (
     LIGHT_TYPES,
+    MAX_CONE_DEG,
     MAX_RADIANCE,
     MAX_WORLD,
     Camera,
@@ -60,10 +61,11 @@ class Scene:
             items = getattr(self, key)
             if not isinstance(items, list):
                 raise ConfigError(f"must be a list of {kind.__name__}s, got {type(items).__name__}", key=key)
+            if key == "nodes":
+                _check_tree(items)
+                continue
             for i, item in enumerate(items):
-                if key == "nodes":
-                    _check_node(item, f"nodes[{i}]")
-                elif not isinstance(item, kind):
+                if not isinstance(item, kind):
                     raise ConfigError(f"must be a {kind.__name__}, got {type(item).__name__}", key=f"{key}[{i}]")
 
     def check(self) -> None:
@@ -105,10 +107,21 @@ class Scene:
         return cls(camera=camera, lights=lights, nodes=nodes)
 
 
-def _check_node(node, where: str) -> None:
-    """Refuse a node, or a part of it, of the wrong type (ConfigError naming its path in the tree)."""
+#: deepest node tree a frame walks: scene files nest 100 levels and glTF files 256 below them; the draw
+#: list recurses about one Python frame a level, and Python stops at 1000
+MAX_TREE_DEPTH = 500
+
+
+def _short(path: str) -> str:
+    """A key path of many levels as its first and last parts: 'nodes[0].(...498 levels...).children[0]'."""
+    parts = path.split(".")
+    return path if len(parts) <= 8 else f"{parts[0]}.(...{len(parts) - 2} levels...).{parts[-1]}"
+
+
+def _check_parts(node, where: str) -> None:
+    """A node's own parts of the right types (ConfigError naming their path), not its children."""
     if not isinstance(node, Node):
-        raise ConfigError(f"must be a Node, got {type(node).__name__}", key=where)
+        raise ConfigError(f"must be a Node, got {type(node).__name__}", key=_short(where))
     for attr, kind, optional in (
         ("transform", Transform, False),
         ("mesh", MeshData, True),
@@ -116,11 +129,56 @@ def _check_node(node, where: str) -> None:
     ):
         value = getattr(node, attr)
         if not isinstance(value, kind) and not (optional and value is None):
-            raise ConfigError(f"must be a {kind.__name__}, got {type(value).__name__}", key=f"{where}.{attr}")
+            raise ConfigError(f"must be a {kind.__name__}, got {type(value).__name__}", key=_short(f"{where}.{attr}"))
+    mat = node.material
+    if mat is not None and not isinstance(mat.description, str):
+        raise ConfigError(
+            f"must be a material name, got {type(mat.description).__name__}",
+            key=_short(f"{where}.material.description"),
+        )
+    if mat is not None and not (isinstance(mat.uniforms, dict) and all(isinstance(k, str) for k in mat.uniforms)):
+        raise ConfigError(
+            f"must be a dict of uniform names to values, got {type(mat.uniforms).__name__}",
+            key=_short(f"{where}.material.uniforms"),
+        )
     if not isinstance(node.children, list):
-        raise ConfigError(f"must be a list of Nodes, got {type(node.children).__name__}", key=f"{where}.children")
-    for i, child in enumerate(node.children):
-        _check_node(child, f"{where}.children[{i}]")
+        raise ConfigError(
+            f"must be a list of Nodes, got {type(node.children).__name__}", key=_short(f"{where}.children")
+        )
+
+
+def _check_tree(nodes: list, where: str = "nodes") -> None:
+    """Every node's parts, no node below itself, no path deeper than MAX_TREE_DEPTH; walked without recursion.
+
+    A node may appear in several places (each is drawn); its subtree is checked once, its height kept.
+    """
+    open_, height = set(), {}  # nodes on the current path; subtree heights of finished nodes
+    stack = [(node, f"{where}[{i}]", 1, False) for i, node in reversed(list(enumerate(nodes)))]
+    while stack:
+        node, path, depth, leaving = stack.pop()
+        if leaving:
+            open_.discard(id(node))
+            height[id(node)] = 1 + max((height.get(id(c), 0) for c in node.children), default=0)
+            continue
+        if id(node) in open_:
+            raise ConfigError(
+                "is a node that contains it (a cycle in the node tree)",
+                key=_short(path),
+                hint="a node may appear in several places, but never below itself",
+            )
+        if id(node) not in height:
+            _check_parts(node, path)
+        if depth - 1 + height.get(id(node), 1) > MAX_TREE_DEPTH:
+            raise ConfigError(
+                f"nodes nested deeper than {MAX_TREE_DEPTH} levels", key=_short(path), hint="flatten the hierarchy"
+            )
+        if id(node) in height:
+            continue
+        open_.add(id(node))
+        stack.append((node, path, depth, True))
+        stack.extend(
+            (c, f"{path}.children[{i}]", depth + 1, False) for i, c in reversed(list(enumerate(node.children)))
+        )
 
 
 def _lights_plausible(lights: list[Light]) -> bool:
@@ -141,11 +199,20 @@ def _lights_plausible(lights: list[Light]) -> bool:
     if np.any(np.max(np.abs(vec[:, 0]), axis=1) * np.abs(num[:, 0]) > MAX_RADIANCE):
         return False
     aimed = np.array([l.type in ("spot", "directional") for l in lights])
-    return not np.any(aimed & np.all(vec[:, 2] == 0.0, axis=1))
+    if np.any(aimed & np.all(vec[:, 2] == 0.0, axis=1)):
+        return False
+    if np.any(num[:, 0] < 0.0) or np.any(vec[:, 0] < 0.0):  # negative intensity or colour
+        return False
+    ranged = np.array([l.type in ("point", "spot") for l in lights])
+    spot = np.array([l.type == "spot" for l in lights])
+    inner, outer = num[:, 2], num[:, 3]
+    cone = (outer > 0.0) & (outer <= MAX_CONE_DEG) & (inner >= 0.0) & (inner <= outer)
+    return not (np.any(ranged & ~(num[:, 1] > 0.0)) or np.any(spot & ~cone))
 
 
 __all__ = [
     "LIGHT_TYPES",
+    "MAX_TREE_DEPTH",
     "MAX_RADIANCE",
     "MAX_WORLD",
     "Camera",

@@ -56,7 +56,8 @@ Meshes
 Materials
     ``{description: NAME, uniforms: {...}}`` or just ``NAME``. Names and uniforms are checked
     by the renderer, not here. Uniform numbers become floats, lists become tuples of floats,
-    and strings ending in .png/.jpg/.jpeg are texture paths, stored as absolute paths.
+    and strings ending in an image suffix (.png, .jpg, .jpeg, .bmp, .gif, .tga, .tif, .tiff,
+    .webp) are texture paths, stored as absolute paths.
 
 Relative paths (mesh files, textures) resolve against the scene file's directory.
 Each MaterialInstance gets ``source = (file, line)`` (line of its ``material`` key) and
@@ -67,6 +68,7 @@ errors can cite the scene file.
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -75,13 +77,14 @@ from typing import Any
 import numpy as np
 import yaml
 
-from ..errors import ConfigError
+from ..errors import ArgumentError, ConfigError
 from ..numeric import Range, number_hint
-from ..yaml_source import compose, nesting_error, read_text
+from ..yaml_source import compose, file_problem, nesting_error, read_text, reader_error, resolved
 from .graph import LIGHT_TYPES, MAX_WORLD, Camera, Light, MaterialInstance, MeshData, Node, Scene, Transform
 from .mesh_io import load_mesh_file
-from .nodes import _scaled_unit
+from .nodes import MAX_CONE_DEG, _scaled_unit
 from .primitives import PRIMITIVE_KINDS, make_primitive
+from .texture import TEXTURE_SUFFIXES
 
 TOP_KEYS = ("camera", "background", "lights", "nodes")
 CAMERA_KEYS = ("position", "target", "up", "fov_y", "near", "far")
@@ -94,7 +97,6 @@ LIGHT_KEYS = {
     "directional": ("type", "direction", "color", "intensity"),
     "ambient": ("type", "color", "intensity"),
 }
-TEXTURE_SUFFIXES = (".png", ".jpg", ".jpeg")
 MAX_SCENE_DEPTH = 100  # levels of children; the loader, the graph walk and the draw list recurse per level
 DEPTH_BITS = 24  # the G-buffer depth and gl_FragCoord.z both resolve 2**-24 steps near 1
 
@@ -218,8 +220,12 @@ class _Reader:
 
     def path(self, at: _At) -> Path:
         """A file path resolved against the scene file's directory."""
-        p = Path(self.string(at)).expanduser()
-        return (p if p.is_absolute() else self.base_dir / p).resolve()
+        text = self.string(at)
+        try:
+            p = Path(text).expanduser()
+        except RuntimeError:  # '~nobody/x': no such user's home; the path is read as written
+            p = Path(text)
+        return resolved(p if p.is_absolute() else self.base_dir / p)
 
     # ---- scene parts ---------------------------------------------------------------------
 
@@ -302,9 +308,9 @@ class _Reader:
         if "radius" in f:
             light.radius = self.number(f["radius"], 0.0, lo_open=True)
         if "inner_angle_deg" in f:
-            light.inner_angle_deg = self.number(f["inner_angle_deg"], 0.0, 89.9)
+            light.inner_angle_deg = self.number(f["inner_angle_deg"], 0.0, MAX_CONE_DEG)
         if "outer_angle_deg" in f:
-            light.outer_angle_deg = self.number(f["outer_angle_deg"], 0.0, 89.9, lo_open=True)
+            light.outer_angle_deg = self.number(f["outer_angle_deg"], 0.0, MAX_CONE_DEG, lo_open=True)
         if kind == "spot" and light.inner_angle_deg > light.outer_angle_deg:
             raise self.error(
                 f.get("inner_angle_deg", f.get("outer_angle_deg", at)),
@@ -473,11 +479,14 @@ class _Reader:
         text = node.value
         if text.lower().endswith(TEXTURE_SUFFIXES):
             path = self.path(at)
-            if not path.is_file():
+            problem = file_problem(path)  # a FIFO or a device said so, not "not found" (and never opened)
+            if problem is not None:
                 raise self.error(
                     at,
-                    f"texture file not found: {path}",
-                    "relative paths are resolved against the scene file's directory",
+                    f"texture file {problem}: {path}",
+                    "relative paths are resolved against the scene file's directory"
+                    if problem == "not found"
+                    else "name a regular image file",
                 )
             return str(path)
         return text
@@ -499,8 +508,10 @@ def load_scene_text(text: str, source_name: str = "<string>", base_dir: str | Pa
             mark.line + 1 if mark else None,
             hint="check indentation, colons, quotes and brackets around this line",
         ) from None
+    except yaml.reader.ReaderError as exc:
+        raise reader_error(exc, text, source_name) from None
     except yaml.YAMLError as exc:
-        raise ConfigError(f"invalid YAML: {exc}", source_name) from None
+        raise ConfigError(f"invalid YAML: {' '.join(str(exc).split())}", source_name) from None
     base = Path(base_dir) if base_dir is not None else Path.cwd()
     return _Reader(source_name, base.resolve()).scene(root)
 
@@ -513,9 +524,14 @@ def load(path: str | Path) -> Scene:
     """
     from .files import load_model, model_kind
 
+    if not isinstance(path, (str, os.PathLike)) or isinstance(os.fspath(path), bytes):
+        raise ArgumentError(f"load takes a file path (str or Path), got {type(path).__name__}", key="path")
     p = Path(path)
-    if not p.is_file():
-        raise ConfigError(f"scene file not found: {p}", p, hint="check the path")
+    problem = file_problem(p)  # a FIFO, a device or a folder is named as what it is, and never opened
+    if problem is not None:
+        raise ConfigError(
+            f"scene file {problem}: {p}", p, hint="check the path" if problem == "not found" else "name a regular file"
+        )
     if model_kind(p) != "yaml":
         return load_model(p)
     scene = load_scene_text(read_text(p), str(p), p.parent)

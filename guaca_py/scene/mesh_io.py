@@ -5,13 +5,13 @@ from __future__ import annotations
 import io
 import os
 import re
-import stat
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import ConfigError
+from ..yaml_source import file_problem
 from .nodes import MeshData
 from .texture import decode_image
 
@@ -27,35 +27,6 @@ def file_error(
         return ConfigError(reason, file_for_errors if file_for_errors is not None else p, line, key, hint)
 
     return fail
-
-
-def file_problem(path: str | Path) -> str | None:
-    """Why `path` cannot be read as a regular file (missing, a FIFO, a device, a folder, a NUL, a loop), or None.
-
-    Checked with os.stat before any open: opening a FIFO blocks until a writer comes, forever.
-    """
-    text = os.fspath(path)
-    if "\0" in text:
-        return "contains a NUL character"
-    if not text:
-        return "is empty"
-    try:
-        mode = os.stat(text).st_mode
-    except FileNotFoundError:
-        return "not found"
-    except OSError as exc:  # a symlink loop (ELOOP), a name too long, a folder without permission
-        return exc.strerror.lower() if exc.strerror else str(exc)
-    except ValueError as exc:
-        return str(exc)
-    if stat.S_ISREG(mode):
-        return None if os.access(text, os.R_OK) else "is not readable (permission denied)"
-    if stat.S_ISDIR(mode):
-        return "is a directory"
-    if stat.S_ISFIFO(mode):
-        return "is a FIFO, not a regular file"
-    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
-        return "is a device, not a regular file"
-    return "is not a regular file"
 
 
 def check_file(path: str | Path, fail: Callable[[str, str], ConfigError], what: str) -> None:
@@ -184,16 +155,32 @@ def _check_stl(p: Path, fail: Callable[[str, str], ConfigError]) -> None:
         )
 
 
+#: float32's largest value: vertices are uploaded as float32, a larger coordinate would become inf
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
+#: trimesh merges duplicate vertices by hashing coordinates times 1e8 as int64: beyond this reach the
+#: product overflows and distinct vertices merge (a mesh of 300 vertices at 1e12 became 60), so such a
+#: mesh is kept with the vertices the file has
+MERGE_REACH = 1.0e9
+
+
 def check_finite(loaded, p: Path, fail: Callable[[str, str], ConfigError]) -> None:
-    """Refuse non-finite vertices before trimesh's processing drops them (and their triangles) silently."""
+    """Refuse non-finite vertices (and ones beyond float32) before trimesh's processing drops them silently."""
     geoms = loaded.geometry.values() if hasattr(loaded, "geometry") else [loaded]
     for geom in geoms:
         vertices = getattr(geom, "vertices", None)
-        if vertices is not None and len(vertices) and not np.isfinite(np.asarray(vertices, dtype=np.float64)).all():
-            bad = int((~np.isfinite(np.asarray(vertices, dtype=np.float64))).any(axis=1).sum())
+        if vertices is None or not len(vertices):
+            continue
+        v = np.asarray(vertices, dtype=np.float64)
+        bad = int((~np.isfinite(v)).any(axis=1).sum()) if not np.isfinite(v).all() else 0
+        if bad:
             raise fail(
                 f"{p} has {bad} non-finite vertex position{'s' if bad != 1 else ''} (NaN or inf)",
                 "repair the mesh in a modelling tool",
+            )
+        if float(np.abs(v).max()) > _FLOAT32_MAX:
+            raise fail(
+                f"{p} has vertex coordinates up to {float(np.abs(v).max()):.3g}, beyond float32's range",
+                "scale the model down; coordinates are uploaded as float32",
             )
 
 
@@ -210,8 +197,11 @@ def load_checked(p: Path, trimesh, fail: Callable[[str, str], ConfigError], **kw
             faces = np.asarray(geom.faces)
             if faces.size and (faces.min() < 0 or faces.max() >= len(geom.vertices)):
                 raise fail(f"{p} has face indices outside its vertex list", "repair the mesh in a modelling tool")
+            if faces.size and float(np.abs(np.asarray(geom.vertices)).max()) >= MERGE_REACH:
+                continue  # trimesh's merge would overflow and join distinct vertices: kept as the file has them
             try:
-                geom.process()  # what trimesh.load(process=True) does: merge duplicate vertices
+                with np.errstate(all="ignore"):  # what a hostile file provokes is reported below, not warned
+                    geom.process()  # what trimesh.load(process=True) does: merge duplicate vertices
             except Exception as exc:  # as for trimesh.load: any failure means a bad file
                 raise fail(f"cannot read mesh file {p}: {exc}", MESH_FORMATS_HINT) from exc
     return loaded

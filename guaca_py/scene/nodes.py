@@ -83,11 +83,23 @@ class Transform:
         """Local-to-parent 4x4 float64 matrix: T * Rz * Ry * Rx * S (column vectors), or the given matrix."""
         return self._matrix.copy() if self._matrix is not None else np.array(self.glm_matrix())
 
+    def check(self) -> None:
+        """Refuse translation, rotation_deg or scale changed since construction to anything but 3 finite numbers."""
+        if self._matrix is None:
+            for key in ("translation", "rotation_deg", "scale"):
+                v = getattr(self, key)
+                if _vector3(v) is None:
+                    raise ValueConfigError(f"must be 3 finite numbers, got {v!r}", key=f"Transform.{key}")
+
     def key(self) -> tuple:
         """Hashable key of the transform's values (caches compare values, never object identity)."""
         if self._matrix is not None:
             return ("matrix", self._matrix.tobytes())
-        return (_freeze(self.translation), _freeze(self.rotation_deg), _freeze(self.scale))
+        try:
+            return (_freeze(self.translation), _freeze(self.rotation_deg), _freeze(self.scale))
+        except (TypeError, ValueError):  # a field set to something that is not numbers: named
+            self.check()
+            raise
 
     def __eq__(self, other) -> bool:
         return isinstance(other, Transform) and self.key() == other.key()
@@ -105,18 +117,48 @@ def _freeze(v) -> tuple:
     return v if type(v) is tuple else tuple(float(x) for x in v)
 
 
+#: largest magnitude a vertex attribute may hold: the GPU receives float32
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
 @dataclass
 class MeshData:
-    """Indexed triangle mesh in object space; normals and texcoords are always present."""
+    """Indexed triangle mesh in object space; normals and texcoords are always present.
+
+    The arrays may be replaced after construction (`mesh.positions = new`): the renderer checks
+    them again, once, before the next frame uses them. Editing an array in place is not seen:
+    treat uploaded arrays as immutable and assign new ones instead.
+    """
 
     positions: np.ndarray  # (N, 3) float32
     normals: np.ndarray  # (N, 3) float32, unit length
     texcoords: np.ndarray  # (N, 2) float32
-    indices: np.ndarray  # (M, 3) uint32
+    indices: np.ndarray  # (M, 3) uint32, or (3M,)
     name: str = "mesh"
 
     def __post_init__(self):
         self.check()
+        self.__dict__["_gua_derived"] = (self._arrays(), {})
+
+    def _arrays(self) -> tuple:
+        return (self.positions, self.normals, self.texcoords, self.indices)
+
+    def derived(self, name: str, compute):
+        """`compute(self)`, memoised while the mesh holds the same four array objects (a content digest, a reach).
+
+        When any array was replaced since the last call, the arrays are checked again first
+        (`check`, ConfigError naming the mesh) and every memoised value is dropped: each costs
+        one pass over the arrays per change, never one per frame.
+        """
+        arrays = self._arrays()
+        held = self.__dict__.get("_gua_derived")
+        if held is None or any(a is not b for a, b in zip(arrays, held[0])):
+            self.check()
+            held = self.__dict__["_gua_derived"] = (arrays, {})
+        values = held[1]
+        if name not in values:
+            values[name] = compute(self)
+        return values[name]
 
     def check(self) -> None:
         """Refuse arrays of the wrong shape, non-finite positions and indices outside the vertex list (ConfigError)."""
@@ -148,13 +190,18 @@ class MeshData:
         if idx.size and (int(idx.min()) < 0 or int(idx.max()) >= n):
             raise fail(f"indices must lie in [0, {n}), found {int(idx.min())}..{int(idx.max())}")
         for field_name in ("positions", "normals", "texcoords"):
-            if not np.all(np.isfinite(arrays[field_name])):
+            a = arrays[field_name]
+            if not (np.issubdtype(a.dtype, np.floating) or np.issubdtype(a.dtype, np.integer)):
+                raise fail(f"{field_name} must hold real numbers, got {a.dtype}")
+            if not np.all(np.isfinite(a)):
                 raise fail(f"{field_name} must be finite (no NaN or inf)")
+            if a.size and a.dtype.itemsize > 4 and float(np.max(np.abs(a))) > _FLOAT32_MAX:
+                raise fail(f"{field_name} hold values beyond float32's range (the GPU would read inf)")
 
     @property
     def triangle_count(self) -> int:
-        """Number of triangles."""
-        return int(self.indices.shape[0])
+        """Number of triangles (an index list of shape (M, 3) or flat (3M,))."""
+        return int(np.size(self.indices)) // 3
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Axis-aligned (min, max) corners in object space."""
@@ -260,6 +307,8 @@ MAX_WORLD = 1.0e7
 #: largest colour component times intensity of a light, and largest background component: the
 #: shading sums and squares these in float32 (max 3.4e38), so far larger values overflow to black
 MAX_RADIANCE = 1.0e6
+#: widest spot-light cone half-angle in degrees (at 90 the cone is a half-space, its falloff undefined)
+MAX_CONE_DEG = 89.9
 
 
 @dataclass
@@ -319,6 +368,23 @@ class Light:
         for key in ("radius", "inner_angle_deg", "outer_angle_deg"):
             if _number(getattr(self, key)) is None:
                 raise fail(key, f"must be a finite number, got {getattr(self, key)!r}", "see the Light docstring")
+        # the ranges scene files are held to: a negative light would subtract, a radius of 0 divide by zero
+        if intensity < 0.0:
+            raise fail("intensity", f"must be >= 0, got {self.intensity!r}", "e.g. 1.0")
+        if float(np.min(color)) < 0.0:
+            raise fail("color", f"components must be >= 0, got {self.color!r}", "linear RGB, e.g. (1, 1, 1)")
+        if self.type in ("point", "spot") and not self.radius > 0.0:
+            raise fail("radius", f"must be > 0, got {self.radius!r}", "the light's range, e.g. 10")
+        if self.type == "spot":
+            inner, outer = float(self.inner_angle_deg), float(self.outer_angle_deg)
+            if not 0.0 < outer <= MAX_CONE_DEG:
+                raise fail("outer_angle_deg", f"must be in (0, {MAX_CONE_DEG}], got {outer:g}", "e.g. 30")
+            if not 0.0 <= inner <= outer:
+                raise fail(
+                    "inner_angle_deg",
+                    f"must be in [0, outer_angle_deg ({outer:g})], got {inner:g}",
+                    "the inner cone must fit inside the outer one",
+                )
 
 
 def _number(x) -> float | None:
@@ -352,7 +418,7 @@ def scene_bounds(nodes: list[Node]) -> tuple[np.ndarray, np.ndarray]:
     corners = []
     for root in nodes:
         for node, world in root.walk():
-            if node.mesh is None:
+            if node.mesh is None or len(node.mesh.positions) == 0:
                 continue
             lo, hi = node.mesh.bounds()
             box = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])

@@ -10,6 +10,13 @@ import zlib
 
 import numpy as np
 
+from .nodes import ValueConfigError
+
+#: the largest texture side decoded; the header is read first, so a larger image costs no memory
+MAX_TEXTURE_SIDE = 16384
+#: suffixes of image files a scene's string value names as a texture (formats Pillow decodes)
+TEXTURE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tga", ".tif", ".tiff", ".webp")
+
 
 class TextureImage:
     """An RGBA8 image held in memory; usable wherever a sampler2D uniform takes a texture path.
@@ -22,7 +29,17 @@ class TextureImage:
         if px.ndim == 2:
             px = px[:, :, None]
         if px.ndim != 3 or px.shape[2] not in (1, 2, 3, 4) or px.shape[0] < 1 or px.shape[1] < 1:
-            raise ValueError(f"texture image must be (H, W[, 1-4]) pixels, got shape {np.shape(pixels)}")
+            raise ValueConfigError(
+                f"must be (H, W[, 1-4]) pixels, got shape {np.shape(pixels)}", key=f"TextureImage {name!r}"
+            )
+        if max(px.shape[:2]) > MAX_TEXTURE_SIDE:
+            raise ValueConfigError(
+                f"is {px.shape[1]}x{px.shape[0]}; the largest texture is {MAX_TEXTURE_SIDE}x{MAX_TEXTURE_SIDE}",
+                key=f"TextureImage {name!r}",
+                hint="scale the image down",
+            )
+        if not (np.issubdtype(px.dtype, np.number) or px.dtype == np.bool_):
+            raise ValueConfigError(f"must hold numbers, got {px.dtype}", key=f"TextureImage {name!r}")
         if px.dtype == np.uint16:  # 16-bit channels (e.g. a 16-bit PNG read by numpy): scaled, not clipped
             px = np.rint(px.astype(np.float64) * (255.0 / 65535.0)).astype(np.uint8)
         elif px.dtype != np.uint8:  # floats (and other integers) in 0..1
@@ -47,10 +64,6 @@ class TextureImage:
 
     def __repr__(self) -> str:
         return f"TextureImage({self.name!r}, {self.size[0]}x{self.size[1]}, {self.digest[:8]})"
-
-
-#: the largest texture side decoded; the header is read first, so a larger image costs no memory
-MAX_TEXTURE_SIDE = 16384
 
 
 def rgba_pixels(img) -> np.ndarray:

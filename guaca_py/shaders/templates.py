@@ -117,9 +117,11 @@ class ShaderLibrary:
             else:
                 prog = self.ctx.program(**sources)
         except Exception as exc:  # moderngl raises moderngl.Error with the driver's log
-            raise ShaderCompileError(
-                f"GLSL compilation of {label} failed:\n" + explain_compile_error(str(exc), sources, smap, label)
-            ) from exc
+            # one line, the first error's file and line first (the command line's errors are one line each)
+            found = [f for f in explain_compile_error(str(exc), sources, smap, label).splitlines() if f.strip()]
+            more = f"; {len(found) - 1} more: " + "; ".join(f.strip() for f in found[1:]) if len(found) > 1 else ""
+            first = found[0].strip() if found else "the driver gave no log"
+            raise ShaderCompileError(f"{first} (GLSL compilation of {label} failed{more})") from exc
         prog._gua_sources = sources
         self._programs[key] = prog
         return prog

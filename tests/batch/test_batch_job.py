@@ -222,3 +222,19 @@ def test_dict_jobs_read_like_files(tmp_path):
     assert job.frames == 3 and job.camera[1]["degrees"] == 90.0
     with pytest.raises(ConfigError, match="^<job>: 'frames': expected a whole number, got 2.5$"):
         load_job({"scene": "scene.yaml", "frames": 2.5}, base=tmp_path)
+
+
+def test_a_job_scene_texture_is_decoded_as_renders_decode_it(tmp_path):
+    """The driver reads textures for the workers with the renderer's bounded decoder: a bad file is named."""
+    from PIL import Image
+
+    from guaca_py.batch.plan import self_contained
+    from guaca_py.scene.loader import load_scene_text
+
+    Image.new("I;16", (2, 2), 32768).save(tmp_path / "grey.png")
+    (tmp_path / "bad.png").write_bytes(b"\x89PNG\r\n\x1a\n" + b"\0" * 20)
+    text = "nodes: [{{material: {{description: pbr_textured, uniforms: {{albedo_map: {}}}}}}}]"
+    grey = self_contained(load_scene_text(text.format("grey.png"), "s.yaml", tmp_path)).nodes[0].material
+    assert grey.uniforms["albedo_map"].pixels[0, 0].tolist() == [128, 128, 128, 255]  # 16-bit scaled, not clipped
+    with pytest.raises(ConfigError, match="bad.png.*not a readable image"):
+        self_contained(load_scene_text(text.format("bad.png"), "s.yaml", tmp_path))

@@ -206,6 +206,7 @@ def test_glsl_error_cites_material_file_and_line(tmp_path, renderer_factory):
     )
     assert f"broken.json:{src_line}:" in msg, msg
     assert "undefined_thing" in msg
+    assert "\n" not in msg and msg.startswith(f"{tmp_path / 'broken.json'}:{src_line}:"), msg  # one line, file first
 
 
 # ---------------------------------------------------------------------------- YAML: bounded work, located shapes

@@ -173,10 +173,165 @@ def test_unknown_required_extension_is_refused(tmp_path):
     refused(write(tmp_path, doc), "EXT_made_up")
 
 
-def test_sparse_accessor_is_refused_clearly(tmp_path):
+QUAD = [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]]
+
+
+def sparse_doc(moved: dict[int, list], base: bool = True, index_type: int = 5121) -> dict:
+    """quad_doc whose positions accessor is sparse: vertex k of `moved` is substituted by moved[k].
+
+    The substitution's indices and values lie in a second buffer, each in a buffer view; without
+    `base` the accessor has no bufferView of its own and starts from zeros.
+    """
     doc = quad_doc()
-    doc["accessors"][0]["sparse"] = {"count": 1, "indices": {}, "values": {}}
-    refused(write(tmp_path, doc), "accessors[0] is a sparse accessor")
+    keys = sorted(moved)
+    idx = np.array(keys, {5121: np.uint8, 5123: np.uint16, 5125: np.uint32}[index_type]).tobytes()
+    idx += b"\0" * (-len(idx) % 4)
+    vals = np.array([moved[k] for k in keys], np.float32).tobytes()
+    doc["buffers"].append({"byteLength": len(idx + vals), "uri": _data_uri(idx + vals)})
+    doc["bufferViews"] += [
+        {"buffer": 1, "byteOffset": 0, "byteLength": len(idx)},
+        {"buffer": 1, "byteOffset": len(idx), "byteLength": len(vals)},
+    ]
+    acc = doc["accessors"][0]
+    acc["sparse"] = {
+        "count": len(keys),
+        "indices": {"bufferView": 2, "componentType": index_type},
+        "values": {"bufferView": 3},
+    }
+    acc.pop("min"), acc.pop("max")
+    if not base:
+        del acc["bufferView"]
+    return doc
+
+
+def loaded_positions(path) -> list:
+    (mesh,) = load_gltf(path).meshes.values()
+    return mesh.positions[mesh.indices.reshape(-1)].tolist()  # by corner: independent of vertex order
+
+
+@pytest.mark.parametrize("index_type", [5121, 5123, 5125])
+def test_sparse_accessor_substitutes_its_values(tmp_path, index_type):
+    """A sparse POSITION accessor moves vertex 2 from (1, 1, 0) to (2, 3, 0); the others stay."""
+    got = loaded_positions(write(tmp_path, sparse_doc({2: [2, 3, 0]}, index_type=index_type)))
+    moved = [[2, 3, 0] if k == 2 else QUAD[k] for k in (0, 1, 2, 0, 2, 3)]
+    assert got == moved
+
+
+def test_sparse_accessor_without_a_buffer_view_starts_from_zeros(tmp_path):
+    got = loaded_positions(write(tmp_path, sparse_doc({1: [1, -1, 0], 2: [1, 1, 0]}, base=False)))
+    assert got == [[0, 0, 0], [1, -1, 0], [1, 1, 0], [0, 0, 0], [1, 1, 0], [0, 0, 0]]
+
+
+def test_sparse_accessor_in_a_glb_and_as_indices(tmp_path):
+    """The substitution works on a GLB's binary chunk and on an index accessor (triangle 2 turned round)."""
+    doc = quad_doc()
+    doc["buffers"].append({"byteLength": 4, "uri": _data_uri(np.array([4, 5, 3, 2], np.uint8).tobytes())})
+    doc["bufferViews"] += [
+        {"buffer": 1, "byteOffset": 0, "byteLength": 2},
+        {"buffer": 1, "byteOffset": 2, "byteLength": 2},
+    ]
+    doc["accessors"][1]["sparse"] = {
+        "count": 2,
+        "indices": {"bufferView": 2, "componentType": 5121},
+        "values": {"bufferView": 3},
+    }  # indices[4] = 3 and [5] = 2: the second triangle (0, 2, 3) becomes (0, 3, 2)
+    doc["accessors"][1]["componentType"] = 5121
+    doc["bufferViews"][1]["byteLength"] = 6
+    pos = base64.b64decode(doc["buffers"][0]["uri"].split(",", 1)[1])[:48]
+    doc["buffers"][0] = {"byteLength": 56}
+    binary = pos + np.array([0, 1, 2, 0, 2, 3, 0, 0], np.uint8).tobytes()
+    text = json.dumps(doc).encode()
+    text += b" " * (-len(text) % 4)
+    body = struct.pack("<II", len(text), 0x4E4F534A) + text + struct.pack("<II", len(binary), 0x004E4942) + binary
+    path = tmp_path / "sparse.glb"
+    path.write_bytes(struct.pack("<III", 0x46546C67, 2, 12 + len(body)) + body)
+    assert loaded_positions(path) == [QUAD[k] for k in (0, 1, 2, 0, 3, 2)]
+
+
+@pytest.mark.parametrize(
+    "change, fragment",
+    [
+        (lambda s: s.update(count=5), "accessors[0].sparse.count 5 exceeds the accessor's count 4"),
+        (lambda s: s.update(count=0), "accessors[0].sparse needs a count of at least 1"),
+        (lambda s: s["indices"].update(componentType=5126), "accessors[0].sparse.indices.componentType = 5126"),
+        (lambda s: s["indices"].update(bufferView=9), "accessors[0].sparse.indices.bufferView = 9 is not an index"),
+        (lambda s: s["values"].update(byteOffset=8), "accessors[0].sparse.values (1 x 12 bytes from byteOffset 8)"),
+        (lambda s: s.pop("values"), "needs a count of at least 1, indices and values"),
+    ],
+    ids=["count", "zero", "index-type", "view", "values-past-view", "no-values"],
+)
+def test_malformed_sparse_accessor_is_refused_naming_it(tmp_path, change, fragment):
+    doc = sparse_doc({2: [2, 3, 0]})
+    change(doc["accessors"][0]["sparse"])
+    refused(write(tmp_path, doc), fragment)
+
+
+@pytest.mark.parametrize("stride", [0, 8])
+def test_byte_stride_shorter_than_an_element_is_refused(tmp_path, stride):
+    doc = quad_doc()
+    doc["bufferViews"][0]["byteStride"] = stride
+    doc["bufferViews"][0]["byteLength"] = 48
+    refused(write(tmp_path, doc), f"bufferViews[0].byteStride {stride} is less than an element of accessors[0] (12")
+
+
+def test_interleaved_positions_with_a_stride_load(tmp_path):
+    """Positions 24 bytes apart (interleaved with something else) read as the packed ones do."""
+    doc = quad_doc()
+    pos = np.zeros((4, 6), np.float32)
+    pos[:, :3] = QUAD
+    idx = np.array([0, 1, 2, 0, 2, 3], np.uint16).tobytes()
+    data = pos.tobytes() + idx
+    doc["buffers"][0] = {"byteLength": len(data), "uri": _data_uri(data)}
+    doc["bufferViews"][0] = {"buffer": 0, "byteOffset": 0, "byteLength": 96, "byteStride": 24}
+    doc["bufferViews"][1] = {"buffer": 0, "byteOffset": 96, "byteLength": len(idx)}
+    assert loaded_positions(write(tmp_path, doc)) == [QUAD[k] for k in (0, 1, 2, 0, 2, 3)]
+
+
+def test_sparse_index_past_the_accessor_count_is_refused(tmp_path):
+    refused(write(tmp_path, sparse_doc({7: [2, 3, 0]})), "accessors[0].sparse.indices holds 7, not below")
+
+
+def test_sparse_accessor_renders_the_moved_quad(tmp_path, renderer_factory):
+    """The quad moved wholly left of the centre by its sparse accessor: the left is red, the centre background."""
+    from guaca_py import load
+
+    left = {k: [x - 2.5, y * 0.5, 0] for k, (x, y, _) in enumerate(QUAD)}
+    write(tmp_path, sparse_doc(left))
+    (tmp_path / "s.yaml").write_text(
+        "camera: {position: [0, 0, 5], target: [0, 0, 0], fov_y: 60}\nbackground: [0, 0, 0]\n"
+        "nodes: [{mesh: {file: m.gltf}, material: {description: unlit, uniforms: {color: [1, 0, 0]}}}]\n"
+    )
+    image = renderer_factory("default").render(load(tmp_path / "s.yaml"), 64, 64).image
+    assert image[32, 32].tolist() == [0, 0, 0] and image[32, 10, 0] > 200 and image[32, 10, 1] < 20
+
+
+@pytest.mark.parametrize("component, scale", [(5121, 255), (5123, 65535)])
+def test_normalized_integer_texcoords_are_read_as_fractions(tmp_path, component, scale):
+    """TEXCOORD_0 as normalized unsigned bytes or shorts (core glTF 2.0) reads as the float version does."""
+    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 0.5]])
+    docs = []
+    for ints in (False, True):
+        doc = quad_doc()
+        data = (
+            np.round(uv * scale).astype({5121: np.uint8, 5123: np.uint16}[component]) if ints else uv.astype(np.float32)
+        ).tobytes()
+        doc["buffers"].append({"byteLength": len(data), "uri": _data_uri(data)})
+        doc["bufferViews"].append({"buffer": 1, "byteLength": len(data)})
+        doc["accessors"].append(
+            {
+                "bufferView": 2,
+                "componentType": component if ints else 5126,
+                "count": 4,
+                "type": "VEC2",
+                "normalized": ints,
+            }
+        )
+        doc["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = 2
+        doc["meshes"][0]["primitives"][0]["material"] = 0
+        doc["materials"] = [{"pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1]}}]
+        docs.append(load_gltf(write(tmp_path, doc, f"uv{ints}.gltf")))
+    (floats,), (ints,) = (list(d.meshes.values()) for d in docs)
+    assert np.allclose(ints.texcoords, floats.texcoords, atol=1.0 / scale) and floats.texcoords.max() > 0.9
 
 
 @pytest.mark.parametrize("factor", ["[1, 1, 1, NaN]", "[NaN, 0, 0, 1]", "[1, 1, 1, 2]"])
@@ -390,7 +545,7 @@ def test_valid_binary_stl_loads(tmp_path):
 
 
 def test_file_problem_names_fifos_nul_and_devices(tmp_path):
-    from guaca_py.scene.mesh_io import file_problem
+    from guaca_py.yaml_source import file_problem
 
     os.mkfifo(tmp_path / "pipe.png")
     assert file_problem(tmp_path / "pipe.png") == "is a FIFO, not a regular file"
@@ -630,3 +785,75 @@ def test_out_of_range_ply_face_and_odd_obj_digits_are_refused(tmp_path):
         "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 90\n"
     )
     mesh_refused(ply, "face indices outside its vertex list")
+
+
+def test_obj_vertex_beyond_float32_is_refused_without_warnings(tmp_path, recwarn):
+    path = tmp_path / "far.obj"
+    path.write_text("v 1e39 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    mesh_refused(path, "vertex coordinates up to 1e+39, beyond float32's range")
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+
+
+def test_obj_with_huge_coordinates_keeps_its_distinct_vertices(tmp_path, recwarn):
+    """trimesh's merge hashes coordinates x 1e8 as int64: at 1e12 it joined 300 vertices into 60; not merged now."""
+    from guaca_py.scene.mesh_io import load_mesh_file
+
+    rng = np.random.default_rng(0)
+    v = rng.random((300, 3)) * 1e12
+    faces = np.arange(300).reshape(100, 3) + 1
+    path = tmp_path / "huge.obj"
+    path.write_text(
+        "".join(f"v {x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in v) + "".join(f"f {a} {b} {c}\n" for a, b, c in faces)
+    )
+    mesh = load_mesh_file(path)
+    assert len(mesh.positions) == 300 and np.allclose(mesh.positions[mesh.indices.reshape(-1)], v, rtol=1e-6)
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+
+
+def textured_quad(index: int) -> dict:
+    doc = quad_doc()
+    doc["materials"] = [{"pbrMetallicRoughness": {"baseColorTexture": {"index": index}}}]
+    doc["meshes"][0]["primitives"][0]["material"] = 0
+    return doc
+
+
+@pytest.mark.parametrize(
+    "change, fragment",
+    [
+        (lambda d: None, "materials[0].pbrMetallicRoughness.baseColorTexture.index = 0 is not an index below 0"),
+        (lambda d: d.update(textures=[{"source": 3}]), "textures[0].source = 3 is not an index below 0"),
+        (lambda d: d.update(textures=[{"sampler": 1}]), "textures[0].sampler = 1 is not an index below 0"),
+        (
+            lambda d: (d.update(textures=[{}]), d["materials"][0].update(normalTexture=5)),
+            "materials[0].normalTexture must be an object",
+        ),
+    ],
+    ids=["texture", "image", "sampler", "not-an-object"],
+)
+def test_dangling_texture_references_are_refused(tmp_path, change, fragment):
+    """trimesh drops a texture that is not there and draws the model untextured: refused by its path instead."""
+    doc = textured_quad(0)
+    change(doc)
+    refused(write(tmp_path, doc), fragment)
+
+
+@pytest.mark.parametrize("binary_as", ["m.gltf", "m.glb"])
+def test_the_container_is_read_by_its_content_not_its_name(tmp_path, binary_as):
+    """JSON named .glb and a binary glTF named .gltf both load."""
+    doc = quad_doc()
+    if binary_as == "m.gltf":
+        data = base64.b64decode(doc["buffers"][0].pop("uri").split(",", 1)[1])
+        text = json.dumps(doc).encode()
+        text += b" " * (-len(text) % 4)
+        body = struct.pack("<II", len(text), 0x4E4F534A) + text + struct.pack("<II", len(data), 0x004E4942) + data
+        (tmp_path / binary_as).write_bytes(struct.pack("<III", 0x46546C67, 2, 12 + len(body)) + body)
+    else:
+        write(tmp_path, doc, binary_as)
+    assert loaded_positions(tmp_path / binary_as) == [QUAD[k] for k in (0, 1, 2, 0, 2, 3)]
+
+
+def test_a_file_without_scenes_draws_its_root_nodes(tmp_path):
+    """glTF leaves a file without `scenes` to the reader: its root nodes are drawn (trimesh read nothing)."""
+    doc = quad_doc()
+    del doc["scenes"], doc["scene"]
+    assert loaded_positions(write(tmp_path, doc)) == [QUAD[k] for k in (0, 1, 2, 0, 2, 3)]

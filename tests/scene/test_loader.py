@@ -339,6 +339,92 @@ def test_missing_scene_file():
         load_scene("/definitely/not/here.yaml")
 
 
+def _special(tmp_path: Path, kind: str, name: str) -> Path:
+    """A FIFO, a folder or a device (a link to /dev/null) under `name`: no regular file, never to be opened."""
+    import os
+
+    p = tmp_path / name
+    if kind == "device":
+        p.symlink_to(os.devnull)
+    else:
+        os.mkfifo(p) if kind == "fifo" else p.mkdir()
+    return p
+
+
+SPECIAL = {
+    "fifo": "is a FIFO, not a regular file",
+    "directory": "is a directory",
+    "device": "is a device, not a regular file",
+}
+
+
+@pytest.mark.parametrize("kind", SPECIAL)
+def test_a_scene_file_that_is_no_regular_file_says_what_it_is(tmp_path, kind):
+    """A FIFO given as the scene is refused by what it is (opening it would wait for a writer forever)."""
+    p = _special(tmp_path, kind, "scene.yaml")
+    with pytest.raises(ConfigError) as err:
+        load_scene(p)
+    assert f"scene file {SPECIAL[kind]}" in str(err.value) and "not found" not in str(err.value)
+    assert Path(err.value.file) == p
+
+
+@pytest.mark.parametrize("kind", SPECIAL)
+def test_a_texture_that_is_no_regular_file_cites_the_scene_line(tmp_path, kind):
+    texture = _special(tmp_path, kind, "tex.png")
+    scene_path = _scene_file(
+        tmp_path,
+        f"""
+        nodes:
+          - mesh: {{primitive: box}}
+            material: {{description: pbr_textured, uniforms: {{albedo_map: {texture}}}}}
+    """,
+    )
+    with pytest.raises(ConfigError) as err:
+        load_scene(scene_path)
+    e = err.value
+    assert f"texture file {SPECIAL[kind]}: {texture.resolve()}" in str(e) and "not found" not in str(e)
+    assert Path(e.file) == scene_path and e.line == 3 and e.key == "nodes[0].material.uniforms.albedo_map"
+
+
+@pytest.mark.parametrize("fmt, suffix", [("WEBP", ".webp"), ("BMP", ".bmp"), ("GIF", ".gif"), ("TIFF", ".tif")])
+def test_textures_of_every_image_suffix_resolve_against_the_scene(tmp_path, fmt, suffix):
+    """Not only .png/.jpg: any image suffix Pillow reads names a texture beside the scene (not beside the material)."""
+    from PIL import Image
+
+    Image.new("RGB", (2, 2), (255, 0, 0)).save(tmp_path / f"t{suffix}", fmt)
+    scene = load_scene_text(
+        f"nodes: [{{material: {{description: pbr_textured, uniforms: {{albedo_map: t{suffix}}}}}}}]", "s.yaml", tmp_path
+    )
+    assert scene.nodes[0].material.uniforms["albedo_map"] == str(tmp_path / f"t{suffix}")
+
+
+def test_a_texture_link_loop_is_refused_at_its_line(tmp_path):
+    (tmp_path / "loop.png").symlink_to("loop.png")
+    with pytest.raises(ConfigError) as err:
+        load_scene_text(
+            "nodes:\n  - material: {description: pbr_textured, uniforms: {albedo_map: loop.png}}\n", "s.yaml", tmp_path
+        )
+    assert err.value.line == 2 and "symbolic links" in str(err.value) and "loop.png" in str(err.value)
+
+
+def test_a_control_character_in_a_scene_is_one_line_at_its_line():
+    with pytest.raises(ConfigError) as err:
+        load_scene_text("nodes:\n  - name: a\0b\n", "s.yaml")
+    assert str(err.value).count("\n") == 0 and err.value.line == 2 and "#x0000 is not allowed" in str(err.value)
+
+
+@pytest.mark.parametrize("suffix,what", [(".obj", "mesh file"), (".glb", "glTF file")])
+@pytest.mark.parametrize("kind", SPECIAL)
+def test_a_mesh_that_is_no_regular_file_cites_the_scene_line(tmp_path, kind, suffix, what):
+    mesh = _special(tmp_path, kind, "model" + suffix)
+    scene_path = _scene_file(tmp_path, f"nodes:\n  - name: a\n    mesh: {{file: '{mesh}'}}\n")
+    with pytest.raises(ConfigError) as err:
+        load_scene(scene_path)
+    e = err.value
+    assert f"{what} {SPECIAL[kind]}" in str(e) and str(mesh.resolve()) in str(e)
+    assert Path(e.file) == scene_path and e.line == 3 and e.key == "nodes[0].mesh.file"
+
+
 # ---- mesh files ------------------------------------------------------------------------------
 
 
