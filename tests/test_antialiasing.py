@@ -355,10 +355,11 @@ def test_gpu_variants_at_8_samples_pass_the_reference_compiler(aa_renderers, tmp
     cvars = dict(seen, method_extensions=m.resolve_extensions(), **m.template_vars())
     cvars.update(aa_samples=8, output_format="rgba32f")
     sources["comp"] = r.shaders.render("composite/shade_composite.comp.j2", **cvars)
-    cvars.update(supersample=3)
+    cvars.update(supersample=3, local_edge=9)
     supersampled = r.shaders.render("composite/shade_composite.comp.j2", **cvars)
     assert "gl_SampleMaskIn" in sources["frag"] and "sampler2DMS" in sources["comp"]
-    assert "gua_composite_pixel(pix * 3 + ivec2(x, y))" in supersampled
+    # an invocation per rendered pixel, 9 x 9 workgroups of whole 3 x 3 blocks
+    assert "const int GUA_SS = 3;" in supersampled and "local_size_x = 9" in supersampled
     assert "uint64_t" in sources["frag"] or m.link_bytes == 4
     if method.startswith("presort_lf"):  # the sorted 64-bit walk: loads past nearer records
         assert "uint64_t seen = gua_links[slot];" in sources["frag"]
