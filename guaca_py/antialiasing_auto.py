@@ -30,8 +30,10 @@ from .raster.choice import mean_projected_area
 # aa_cost/ and accuracy_scenes/; docs/antialiasing.md): 4 samples against 1 stored 3.08x the fragments
 # on the dragons (mean triangle area 0.31 px²), 1.13x / 1.11x on Sponza v1 / v2 (92 / 158 px²), 1.79x /
 # 1.15x on hairball_v1 / v2 (5.2 / 34.6 px²); their frames took 3.19x, 1.57x, 1.51x, 2.64x and 1.92x;
-# the dragons' 2048² frame (supersample 2's) took 2.10x the 1024² one. To be recalibrated with the
-# chart of benchmarks/accuracy_scenes.py --aa-chart.
+# the dragons' 2048² frame (supersample 2's) took 2.10x the 1024² one. Checked against the chart of
+# benchmarks/accuracy_scenes.py --aa-chart (benchmarks/results/h100/accuracy_scenes/aa_chart.md): the
+# rule took the cheaper mode on all five scenes (supersample 2 on the dragons: 3.85 ms against 5.98;
+# 4 samples on Sponza v1 / v2 and the hairballs, 3-3.5x cheaper there than supersample 2).
 EDGE = 1.25  # fragment growth at 4 samples: 1 + EDGE / sqrt(area px²) (fit: 1.15 dragons ... 1.38 Sponza v2)
 COVERAGE_FIXED = 1.46  # the 4-sample frame's cost where the triangles are large (Sponza: 1.51-1.57x)
 COVERAGE_EDGE = 0.83  # cost per unit of extra fragment growth (the dragons: 3.19x at 3.08x the fragments)
