@@ -114,7 +114,7 @@ def test_sorted_input_needs_fewer_passes(renderers):
     "method, expected",
     [
         ("depth_peeling", 16),
-        ("dual_depth_peeling", 8),
+        ("dual_depth_peeling", 9),
         ("multilayer_depth_peeling", 4),
         ("coherent_layer_peeling", 5),
         ("hybrid_layer_peeling", 1),
@@ -122,8 +122,9 @@ def test_sorted_input_needs_fewer_passes(renderers):
 )
 def test_pass_counts_on_sorted_planes(renderers, method, expected):
     # 16 planes over every pixel, front to back, nothing saturates: one layer per pass, two (both
-    # ends), four (M = 4), one coherent iteration, one composite of the sorted chain. A pass that
-    # sees nothing left behind the layers it peeled is the last one (no empty pass at the end).
+    # ends, after a first pass that finds them), four (M = 4), one coherent iteration, one composite
+    # of the sorted chain. A pass that sees nothing left behind the layers it peeled is the last one
+    # (no empty pass at the end).
     frame = renderers(method).render(planes(16, 0.2, "front_to_back"), SIZE, SIZE)
     assert frame.stats["geometry_passes"] == expected
     assert frame.stats["fragments"]["stored"] == 16 * SIZE * SIZE
@@ -147,6 +148,18 @@ def test_depth_peeling_pass_cap_reports_truncation(renderers):
     assert s["fragments"]["truncated"] == 9 * SIZE * SIZE
     assert any("max_passes=3" in w for w in s["warnings"]), s.get("warnings")
     assert compare(frame.image, ref, mask)["max_abs_255"] > 10  # the missing layers show
+
+
+@pytest.mark.parametrize("cap, peeled", [(1, 0), (2, 2), (4, 6), (7, 12)])
+def test_dual_pass_cap_counts_what_is_left(renderers, cap, peeled):
+    # a first pass finds the two ends, each pass after it peels them; the last pass the cap allows
+    # counts the fragments between its two layers, which are what is left (none at 7: 1 + 12 / 2)
+    scene = planes(12, 0.15, "shuffled")
+    s = renderers("dual_depth_peeling", max_passes=cap).render(scene, SIZE, SIZE).stats
+    assert s["geometry_passes"] == cap
+    assert s["fragments"]["peeled"] == peeled * SIZE * SIZE
+    assert s["fragments"]["truncated"] == (12 - peeled) * SIZE * SIZE
+    assert any(f"max_passes={cap}" in w for w in s.get("warnings", [])) == (peeled < 12), s.get("warnings")
 
 
 @pytest.mark.parametrize(
@@ -268,18 +281,23 @@ def test_interlock_variant_passes_the_reference_compiler(renderer_factory, tmp_p
     from guaca_py.renderer import method_settings
 
     r = renderer_factory("exact", method=method)
+    scene = layered_quads_scene(n_layers=2, order="shuffled", seed=1)
+    r.render(scene, 8, 8)  # the light lookup's template variables, which the shading phases need
     caps = dataclasses.replace(r.caps, fragment_interlock=True, framebuffer_fetch=False)
     m = method_class(method)(method_settings(method, {}), caps)
     assert m.order == "interlock"
-    m._phase = "dual" if method == "dual_depth_peeling" else "nearest"  # their ordered geometry phases
+    m._shading = r.method._shading
     monkeypatch.setattr(r.shaders, "program", lambda stages, smap=None, label="": stages)
-    scene = layered_quads_scene(n_layers=2, order="shuffled", seed=1)
     draw = next(d for d in build_draw_list(scene, r.materials) if d.transparent)
-    for stage, (template, variables) in r.raster.hardware.program(m, draw, True).items():
-        text = r.shaders.render(template, **variables)
-        if stage == "fragment_shader":
-            assert "pixel_interlock_ordered" in text and "imageStore(gua_ord0" in text
-        path = tmp_path / ("s.frag" if stage == "fragment_shader" else "s.vert")
-        path.write_text(text)
-        run = subprocess.run(["glslangValidator", str(path)], capture_output=True, text=True)
-        assert run.returncode == 0, (stage, run.stdout[-2000:])
+    # their ordered geometry phases (dual: the first pass, the shading passes, the counting variants)
+    phases = ["dual_first", "dual", "dual_first_count", "dual_count"] if method == "dual_depth_peeling" else ["nearest"]
+    for phase in phases:
+        m._phase = phase
+        for stage, (template, variables) in r.raster.hardware.program(m, draw, True).items():
+            text = r.shaders.render(template, **variables)
+            if stage == "fragment_shader":
+                assert "pixel_interlock_ordered" in text and "imageStore(gua_ord0" in text
+            path = tmp_path / ("s.frag" if stage == "fragment_shader" else "s.vert")
+            path.write_text(text)
+            run = subprocess.run(["glslangValidator", str(path)], capture_output=True, text=True)
+            assert run.returncode == 0, (phase, stage, run.stdout[-2000:])
