@@ -489,16 +489,15 @@ def peel_dual(m: Peeling, frame) -> None:
     """Dual depth peeling's loop: a first pass finds each pixel's nearest and farthest layer, each later
     pass shades the two it was given and finds the next two between them, until no pixel has any left.
 
-    Under a cap, the last pass it allows counts what it leaves between the bounds (truncated).
+    Under a cap, the step after the last pass it allows adds up what is left (truncated).
     """
     s = m.stats
-    first = True
+    phase = "dual_first"
     while True:
         last = m.cap_reached(needed=2)  # the cap allows this pass and no other
-        phase = ("dual_first" if first else "dual") + ("_count" if last else "")
         m.reset_counters()
-        m.geometry_pass(frame, phase, m.phase_slots(phase), per_program=None if first else frame.bind_lights)
-        m.step(frame, "dual_count" if last else "dual")
+        m.geometry_pass(frame, phase, m.phase_slots(phase), per_program=frame.bind_lights if phase == "dual" else None)
+        m.step(frame, "dual_last" if last else "dual")
         c = m.read_counters()
         s["iterations"] += 1
         s["peeled"] += c["peeled"]
@@ -508,11 +507,9 @@ def peel_dual(m: Peeling, frame) -> None:
         if last:
             m.truncate(c["left"])
             break
-        first = False
+        phase = "dual"
 
 
-_DUAL_FIRST = ("bounds", "next")
-_DUAL = ("bounds", "next", "acc_front", "acc_back")
 register("method")(
     MethodSpec(
         "dual_depth_peeling",  # Bavoil & Myers 2008: nearest and farthest layer per pass, front under, back over
@@ -521,18 +518,13 @@ register("method")(
         PeelKind(
             "dual",
             peel_dual,
-            # the nearest and farthest keys between the bounds (the next pass's bounds); fragments
-            # left between them, counted by the last pass a cap allows
+            # the nearest and farthest keys between the bounds (the next pass's bounds); how many
+            # fragments are left
             (("next", 4, EMPTY_NEXT), ("left", 1, ZERO)),
             has_back=True,
             upper_opaque=True,
-            phases=(
-                ("dual_first", _DUAL_FIRST),
-                ("dual", _DUAL),
-                ("dual_first_count", (*_DUAL_FIRST, "left")),
-                ("dual_count", (*_DUAL, "left")),
-            ),
-            shading_phases=("dual", "dual_count"),
+            phases=(("dual_first", ("bounds", "next")), ("dual", ("bounds", "next", "acc_front", "acc_back"))),
+            shading_phases=("dual",),
         ),
         PEEL_SETTINGS,
         geometry_passes=None,

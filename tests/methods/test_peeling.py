@@ -152,8 +152,8 @@ def test_depth_peeling_pass_cap_reports_truncation(renderers):
 
 @pytest.mark.parametrize("cap, peeled", [(1, 0), (2, 2), (4, 6), (7, 12)])
 def test_dual_pass_cap_counts_what_is_left(renderers, cap, peeled):
-    # a first pass finds the two ends, each pass after it peels them; the last pass the cap allows
-    # counts the fragments between its two layers, which are what is left (none at 7: 1 + 12 / 2)
+    # a first pass finds the two ends and counts the fragments, each pass after it peels two; the
+    # step after the last pass the cap allows adds up what is left (none at 7: 1 + 12 / 2)
     scene = planes(12, 0.15, "shuffled")
     s = renderers("dual_depth_peeling", max_passes=cap).render(scene, SIZE, SIZE).stats
     assert s["geometry_passes"] == cap
@@ -289,8 +289,8 @@ def test_interlock_variant_passes_the_reference_compiler(renderer_factory, tmp_p
     m._shading = r.method._shading
     monkeypatch.setattr(r.shaders, "program", lambda stages, smap=None, label="": stages)
     draw = next(d for d in build_draw_list(scene, r.materials) if d.transparent)
-    # their ordered geometry phases (dual: the first pass, the shading passes, the counting variants)
-    phases = ["dual_first", "dual", "dual_first_count", "dual_count"] if method == "dual_depth_peeling" else ["nearest"]
+    # their ordered geometry phases (dual: the first pass, the shading passes)
+    phases = ["dual_first", "dual"] if method == "dual_depth_peeling" else ["nearest"]
     for phase in phases:
         m._phase = phase
         for stage, (template, variables) in r.raster.hardware.program(m, draw, True).items():
