@@ -37,7 +37,19 @@ from ..shaders.slots import Buffer, Image, Texture
 from .base import MethodSpec, TransparencyMethod
 
 # Counter words of peeling/counters.glsl.j2, in order.
-COUNTERS = ("in_range", "peeled", "composited", "overflow", "alloc", "guard", "saturated", "rejected", "left", "active")
+COUNTERS = (
+    "in_range",
+    "peeled",
+    "composited",
+    "overflow",
+    "alloc",
+    "guard",
+    "saturated",
+    "rejected",
+    "left",
+    "active",
+    "hidden",
+)
 EMPTY_NEAR = "uvec4(GUA_INF, 0u, 0u, 0u)"  # slot clears (GLSL) of step.comp.j2's init step
 EMPTY_NEAR_TIE = "uvec4(0u, 0u, 0u, GUA_TIE_MAX)"
 EMPTY_FAR = "uvec4(GUA_LOWEST, 0u, 0u, 0u)"
@@ -489,10 +501,12 @@ def peel_dual(m: Peeling, frame) -> None:
     """Dual depth peeling's loop: a first pass finds each pixel's nearest and farthest layer, each later
     pass shades the two it was given and finds the next two between them, until no pixel has any left.
 
-    Under a cap, the step after the last pass it allows adds up what is left (truncated).
+    Layers peeled = fragments in range - those that early termination hides - those a cap leaves
+    (truncated, added up by the step after the last pass the cap allows).
     """
     s = m.stats
     phase = "dual_first"
+    in_range = hidden = 0
     while True:
         last = m.cap_reached(needed=2)  # the cap allows this pass and no other
         m.reset_counters()
@@ -500,14 +514,16 @@ def peel_dual(m: Peeling, frame) -> None:
         m.step(frame, "dual_last" if last else "dual")
         c = m.read_counters()
         s["iterations"] += 1
-        s["peeled"] += c["peeled"]
         s["saturated_pixels"] += c["saturated"]
+        in_range += c["in_range"]
+        hidden += c["hidden"]
         if c["active"] == 0:
             break
         if last:
             m.truncate(c["left"])
             break
         phase = "dual"
+    s["peeled"] = in_range - hidden - s["truncated"]
 
 
 register("method")(
