@@ -498,8 +498,9 @@ register("method")(
 
 
 def peel_dual(m: Peeling, frame) -> None:
-    """Dual depth peeling's loop: a first pass finds each pixel's nearest and farthest layer, each later
-    pass shades the two it was given and finds the next two between them, until no pixel has any left.
+    """Dual depth peeling's loop: a first pass shades each pixel's nearest and farthest layer and finds the
+    two after them, each later pass shades the two it was given and finds the next two between them,
+    until no pixel has any left.
 
     Layers peeled = fragments in range - those that early termination hides - those a cap leaves
     (truncated, added up by the step after the last pass the cap allows).
@@ -510,7 +511,7 @@ def peel_dual(m: Peeling, frame) -> None:
     while True:
         last = m.cap_reached(needed=2)  # the cap allows this pass and no other
         m.reset_counters()
-        m.geometry_pass(frame, phase, m.phase_slots(phase), per_program=frame.bind_lights if phase == "dual" else None)
+        m.geometry_pass(frame, phase, m.phase_slots(phase), per_program=frame.bind_lights)
         m.step(frame, "dual_last" if last else "dual")
         c = m.read_counters()
         s["iterations"] += 1
@@ -534,16 +535,19 @@ register("method")(
         PeelKind(
             "dual",
             peel_dual,
-            # the nearest and farthest keys between the bounds (the next pass's bounds); how many
-            # fragments are left
-            (("next", 4, EMPTY_NEXT), ("left", 1, ZERO)),
+            # the nearest and farthest keys between the bounds (the next pass's bounds); the first
+            # pass's second nearest and second farthest; how many fragments are left
+            (("next", 4, EMPTY_NEXT), ("second", 4, EMPTY_NEXT), ("left", 1, ZERO)),
             has_back=True,
             upper_opaque=True,
-            phases=(("dual_first", ("bounds", "next")), ("dual", ("bounds", "next", "acc_front", "acc_back"))),
-            shading_phases=("dual",),
+            phases=(
+                ("dual_first", ("bounds", "next", "acc_front", "acc_back", "second")),
+                ("dual", ("bounds", "next", "acc_front", "acc_back")),
+            ),
+            shading_phases=("dual_first", "dual"),
         ),
         PEEL_SETTINGS,
         geometry_passes=None,
-        geometry_passes_rule="layers/2+1",
+        geometry_passes_rule="layers/2",
     )
 )

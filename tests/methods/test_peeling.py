@@ -114,7 +114,7 @@ def test_sorted_input_needs_fewer_passes(renderers):
     "method, expected",
     [
         ("depth_peeling", 16),
-        ("dual_depth_peeling", 9),
+        ("dual_depth_peeling", 8),
         ("multilayer_depth_peeling", 4),
         ("coherent_layer_peeling", 5),
         ("hybrid_layer_peeling", 1),
@@ -122,9 +122,8 @@ def test_sorted_input_needs_fewer_passes(renderers):
 )
 def test_pass_counts_on_sorted_planes(renderers, method, expected):
     # 16 planes over every pixel, front to back, nothing saturates: one layer per pass, two (both
-    # ends, after a first pass that finds them), four (M = 4), one coherent iteration, one composite
-    # of the sorted chain. A pass that sees nothing left behind the layers it peeled is the last one
-    # (no empty pass at the end).
+    # ends), four (M = 4), one coherent iteration, one composite of the sorted chain. A pass that
+    # sees nothing left behind the layers it peeled is the last one (no empty pass at the end).
     frame = renderers(method).render(planes(16, 0.2, "front_to_back"), SIZE, SIZE)
     assert frame.stats["geometry_passes"] == expected
     assert frame.stats["fragments"]["stored"] == 16 * SIZE * SIZE
@@ -150,10 +149,10 @@ def test_depth_peeling_pass_cap_reports_truncation(renderers):
     assert compare(frame.image, ref, mask)["max_abs_255"] > 10  # the missing layers show
 
 
-@pytest.mark.parametrize("cap, peeled", [(1, 0), (2, 2), (4, 6), (7, 12)])
+@pytest.mark.parametrize("cap, peeled", [(1, 2), (2, 4), (5, 10), (6, 12)])
 def test_dual_pass_cap_counts_what_is_left(renderers, cap, peeled):
-    # a first pass finds the two ends and counts the fragments, each pass after it peels two; the
-    # step after the last pass the cap allows adds up what is left (none at 7: 1 + 12 / 2)
+    # each pass peels two layers (the first also counts the pixel's fragments); the step after the
+    # last pass the cap allows adds up what is left (none at 6: 12 / 2)
     scene = planes(12, 0.15, "shuffled")
     s = renderers("dual_depth_peeling", max_passes=cap).render(scene, SIZE, SIZE).stats
     assert s["geometry_passes"] == cap
