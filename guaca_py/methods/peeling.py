@@ -37,11 +37,24 @@ from ..shaders.slots import Buffer, Image, Texture
 from .base import MethodSpec, TransparencyMethod
 
 # Counter words of peeling/counters.glsl.j2, in order.
-COUNTERS = ("in_range", "peeled", "composited", "overflow", "alloc", "guard", "saturated", "rejected", "left")
+COUNTERS = (
+    "in_range",
+    "peeled",
+    "composited",
+    "overflow",
+    "alloc",
+    "guard",
+    "saturated",
+    "rejected",
+    "left",
+    "active",
+    "hidden",
+)
 EMPTY_NEAR = "uvec4(GUA_INF, 0u, 0u, 0u)"  # slot clears (GLSL) of step.comp.j2's init step
 EMPTY_NEAR_TIE = "uvec4(0u, 0u, 0u, GUA_TIE_MAX)"
 EMPTY_FAR = "uvec4(GUA_LOWEST, 0u, 0u, 0u)"
 ZERO = "uvec4(0u)"
+EMPTY_NEXT = "GUA_DUAL_EMPTY_NEXT"  # dual: nearest key +inf, farthest -1
 ORDERED_PHASES = ("nearest", "dual", "stencil")
 _FETCH_EXT = "#extension GL_EXT_shader_framebuffer_fetch : require\n"
 _INTERLOCK_EXT = "#extension GL_ARB_fragment_shader_interlock : require\n"
@@ -92,8 +105,9 @@ class PeelKind:
     has_back: bool = False  # a back accumulation (dual)
     has_range: bool = False  # a per-pixel compositing range texture (hybrid, coherent)
     needs_ordering: bool = True  # geometry passes read-modify-write per-pixel state in primitive order
-    # dual: its pass also reads the bounds in order (slot 0): cheaper than a texture fetch on llvmpipe
-    bounds_in_order: bool = False
+    # geometry phases whose ordered state is not `slots`: (phase, textures read and written in order)
+    phases: tuple[tuple[str, tuple[str, ...]], ...] = ()
+    shading_phases: tuple[str, ...] = ()  # geometry phases that shade fragments in place (need the lights)
     # dual: the init step starts each pixel's upper bound at its opaque depth (the pass tests only the bounds)
     upper_opaque: bool = False
     # storage of its own beside the textures (multi-layer peeling's node pool): made as storage(method)
@@ -379,18 +393,23 @@ class Peeling(TransparencyMethod):
             "peel_phase": self._phase,
             "peel_order": self.order or "none",
             "ord_formats": [self._image_format(n) for n in self.phase_slots(self._phase)],
-            "fragment_interlock": self.order == "interlock" and self._phase in ORDERED_PHASES,
+            "fragment_interlock": self.order == "interlock" and self.ordered_phase(self._phase),
         }
-        if self._phase == "composite_range":
+        if self._phase == "composite_range" or self._phase in self.kind.shading_phases:
             v.update(self._shading)
         v.update(self.step_vars())
         return v
 
     def phase_slots(self, phase: str) -> list[str]:
         """Slot textures a geometry phase reads and writes in order."""
-        if phase == "dual" and self.kind.bounds_in_order:
-            return ["bounds", *self.slot_names()]
+        for name, textures in self.kind.phases:
+            if name == phase:
+                return list(textures)
         return self.slot_names() if phase in ORDERED_PHASES else []
+
+    def ordered_phase(self, phase: str) -> bool:
+        """Does the phase read and write per-pixel state in primitive order?"""
+        return phase in ORDERED_PHASES or any(name == phase for name, _ in self.kind.phases)
 
     def extensions(self) -> str:
         """Framebuffer fetch or interlock, whichever orders the passes here."""
@@ -442,29 +461,25 @@ class Peeling(TransparencyMethod):
 
 
 def peel_layers(m: Peeling, frame) -> None:
-    """Geometry pass + step until a pass leaves nothing unpeeled; the cap reports what is left.
+    """Depth peeling's loop: geometry pass + step (the nearest layer) until a pass leaves nothing unpeeled.
 
-    Depth peeling peels the nearest layer per pass (phase "nearest"); dual depth peeling the
-    nearest and the farthest (phase "dual"), whose step counts what each pixel has left.
+    The cap reports what is left.
     """
-    phase = m.step_method
     s = m.stats
-    slots = m.phase_slots(phase)
+    slots = m.phase_slots("nearest")
     left = 0
     while True:
         if m.cap_reached():
             m.truncate(left)
             break
         m.reset_counters()
-        m.geometry_pass(frame, phase, slots)
-        m.step(frame, phase)
+        m.geometry_pass(frame, "nearest", slots)
+        m.step(frame, "nearest")
         c = m.read_counters()
         s["iterations"] += 1
         s["peeled"] += c["peeled"]
         s["saturated_pixels"] += c["saturated"]
-        # fragments the pass saw that are still to peel (dual: counted by the step from each
-        # pixel's in-range count; saturated pixels have nothing left)
-        left = c["left"] if phase == "dual" else c["in_range"] - c["peeled"]
+        left = c["in_range"] - c["peeled"]  # fragments the pass saw that are still to peel
         if left == 0:
             break
 
@@ -480,6 +495,38 @@ register("method")(
         geometry_passes_rule="layers",
     )
 )
+
+
+def peel_dual(m: Peeling, frame) -> None:
+    """Dual depth peeling's loop: a first pass shades each pixel's nearest and farthest layer and finds the
+    two after them, each later pass shades the two it was given and finds the next two between them,
+    until no pixel has any left.
+
+    Layers peeled = fragments in range - those that early termination hides - those a cap leaves
+    (truncated, added up by the step after the last pass the cap allows).
+    """
+    s = m.stats
+    phase = "dual_first"
+    in_range = hidden = 0
+    while True:
+        last = m.cap_reached(needed=2)  # the cap allows this pass and no other
+        m.reset_counters()
+        m.geometry_pass(frame, phase, m.phase_slots(phase), per_program=frame.bind_lights)
+        m.step(frame, "dual_last" if last else "dual")
+        c = m.read_counters()
+        s["iterations"] += 1
+        s["saturated_pixels"] += c["saturated"]
+        in_range += c["in_range"]
+        hidden += c["hidden"]
+        if c["active"] == 0:
+            break
+        if last:
+            m.truncate(c["left"])
+            break
+        phase = "dual"
+    s["peeled"] = in_range - hidden - s["truncated"]
+
+
 register("method")(
     MethodSpec(
         "dual_depth_peeling",  # Bavoil & Myers 2008: nearest and farthest layer per pass, front under, back over
@@ -487,12 +534,17 @@ register("method")(
         Peeling,
         PeelKind(
             "dual",
-            peel_layers,
-            # front payload, back payload; an empty back is key -1 (below every fragment)
-            (("front0", 4, EMPTY_NEAR), ("front1", 4, EMPTY_NEAR_TIE), ("back0", 4, EMPTY_FAR), ("back1", 4, ZERO)),
+            peel_dual,
+            # the nearest and farthest keys between the bounds (the next pass's bounds); the first
+            # pass's second nearest and second farthest; how many fragments are left
+            (("next", 4, EMPTY_NEXT), ("second", 4, EMPTY_NEXT), ("left", 1, ZERO)),
             has_back=True,
-            bounds_in_order=True,
             upper_opaque=True,
+            phases=(
+                ("dual_first", ("bounds", "next", "acc_front", "acc_back", "second")),
+                ("dual", ("bounds", "next", "acc_front", "acc_back")),
+            ),
+            shading_phases=("dual_first", "dual"),
         ),
         PEEL_SETTINGS,
         geometry_passes=None,

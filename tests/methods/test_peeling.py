@@ -149,6 +149,18 @@ def test_depth_peeling_pass_cap_reports_truncation(renderers):
     assert compare(frame.image, ref, mask)["max_abs_255"] > 10  # the missing layers show
 
 
+@pytest.mark.parametrize("cap, peeled", [(1, 2), (2, 4), (5, 10), (6, 12)])
+def test_dual_pass_cap_counts_what_is_left(renderers, cap, peeled):
+    # each pass peels two layers (the first also counts the pixel's fragments); the step after the
+    # last pass the cap allows adds up what is left (none at 6: 12 / 2)
+    scene = planes(12, 0.15, "shuffled")
+    s = renderers("dual_depth_peeling", max_passes=cap).render(scene, SIZE, SIZE).stats
+    assert s["geometry_passes"] == cap
+    assert s["fragments"]["peeled"] == peeled * SIZE * SIZE
+    assert s["fragments"]["truncated"] == (12 - peeled) * SIZE * SIZE
+    assert any(f"max_passes={cap}" in w for w in s.get("warnings", [])) == (peeled < 12), s.get("warnings")
+
+
 @pytest.mark.parametrize(
     "method, cap",
     [
@@ -268,18 +280,23 @@ def test_interlock_variant_passes_the_reference_compiler(renderer_factory, tmp_p
     from guaca_py.renderer import method_settings
 
     r = renderer_factory("exact", method=method)
+    scene = layered_quads_scene(n_layers=2, order="shuffled", seed=1)
+    r.render(scene, 8, 8)  # the light lookup's template variables, which the shading phases need
     caps = dataclasses.replace(r.caps, fragment_interlock=True, framebuffer_fetch=False)
     m = method_class(method)(method_settings(method, {}), caps)
     assert m.order == "interlock"
-    m._phase = "dual" if method == "dual_depth_peeling" else "nearest"  # their ordered geometry phases
+    m._shading = r.method._shading
     monkeypatch.setattr(r.shaders, "program", lambda stages, smap=None, label="": stages)
-    scene = layered_quads_scene(n_layers=2, order="shuffled", seed=1)
     draw = next(d for d in build_draw_list(scene, r.materials) if d.transparent)
-    for stage, (template, variables) in r.raster.hardware.program(m, draw, True).items():
-        text = r.shaders.render(template, **variables)
-        if stage == "fragment_shader":
-            assert "pixel_interlock_ordered" in text and "imageStore(gua_ord0" in text
-        path = tmp_path / ("s.frag" if stage == "fragment_shader" else "s.vert")
-        path.write_text(text)
-        run = subprocess.run(["glslangValidator", str(path)], capture_output=True, text=True)
-        assert run.returncode == 0, (stage, run.stdout[-2000:])
+    # their ordered geometry phases (dual: the first pass, the shading passes)
+    phases = ["dual_first", "dual"] if method == "dual_depth_peeling" else ["nearest"]
+    for phase in phases:
+        m._phase = phase
+        for stage, (template, variables) in r.raster.hardware.program(m, draw, True).items():
+            text = r.shaders.render(template, **variables)
+            if stage == "fragment_shader":
+                assert "pixel_interlock_ordered" in text and "imageStore(gua_ord0" in text
+            path = tmp_path / ("s.frag" if stage == "fragment_shader" else "s.vert")
+            path.write_text(text)
+            run = subprocess.run(["glslangValidator", str(path)], capture_output=True, text=True)
+            assert run.returncode == 0, (phase, stage, run.stdout[-2000:])
