@@ -1,12 +1,14 @@
 """Peeling: one class for every peeling method, configured by a record each; depth and dual depth peeling.
 
 Peeling shades each peeled layer, so these methods run their geometry passes at the start of the
-composite pass (`geometry_in_composite`). A geometry pass keeps, per pixel, the nearest remaining
-fragment (dual: also the farthest) by its exact key (window depth, tie id) together with its
-packed shading inputs; a compute step then shades that layer with the shared shade_surface,
-blends it under the front accumulation (dual: over the back one) and moves the pixel's bounds.
-Only fragments in front of the G-buffer depth are peeled; the composite puts the accumulated
-layers in front of the shaded opaque surface.
+composite pass (`geometry_in_composite`). A depth peeling pass keeps, per pixel, the nearest
+remaining fragment by its exact key (window depth, tie id) together with its packed shading
+inputs; a compute step then shades that layer with the shared shade_surface, blends it under the
+front accumulation and moves the pixel's bounds. A dual depth peeling pass (Bavoil and Myers'
+structure) shades the fragments at the pixel's two bounds in place, into the front and back
+accumulations, and keeps the nearest and farthest keys between them, which its step makes the
+next bounds. Only fragments in front of the G-buffer depth are peeled; the composite puts the
+accumulated layers in front of the shaded opaque surface.
 
 Why not the hardware depth test: moderngl only makes 24-bit depth textures, and an exact order
 with deterministic ties needs a 64-bit (depth, tie) comparison. The per-pass "depth buffer" is
