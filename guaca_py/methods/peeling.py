@@ -57,7 +57,7 @@ EMPTY_NEAR_TIE = "uvec4(0u, 0u, 0u, GUA_TIE_MAX)"
 EMPTY_FAR = "uvec4(GUA_LOWEST, 0u, 0u, 0u)"
 ZERO = "uvec4(0u)"
 EMPTY_NEXT = "GUA_DUAL_EMPTY_NEXT"  # dual: nearest key +inf, farthest -1
-ORDERED_PHASES = ("nearest", "dual", "stencil")
+ORDERED_PHASES = ("nearest", "stencil")  # ordered phases that read and write `slots` (others: PeelKind.phases)
 _FETCH_EXT = "#extension GL_EXT_shader_framebuffer_fetch : require\n"
 _INTERLOCK_EXT = "#extension GL_ARB_fragment_shader_interlock : require\n"
 
@@ -110,7 +110,7 @@ class PeelKind:
     # geometry phases whose ordered state is not `slots`: (phase, textures read and written in order)
     phases: tuple[tuple[str, tuple[str, ...]], ...] = ()
     shading_phases: tuple[str, ...] = ()  # geometry phases that shade fragments in place (need the lights)
-    # dual: the init step starts each pixel's upper bound at its opaque depth (the pass tests only the bounds)
+    # dual: the init step starts each pixel's upper bound at its opaque depth (the first pass tests only it)
     upper_opaque: bool = False
     # storage of its own beside the textures (multi-layer peeling's node pool): made as storage(method)
     storage: Callable[[Peeling], Any] | None = None
