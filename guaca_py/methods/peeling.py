@@ -1,12 +1,14 @@
 """Peeling: one class for every peeling method, configured by a record each; depth and dual depth peeling.
 
 Peeling shades each peeled layer, so these methods run their geometry passes at the start of the
-composite pass (`geometry_in_composite`). A geometry pass keeps, per pixel, the nearest remaining
-fragment (dual: also the farthest) by its exact key (window depth, tie id) together with its
-packed shading inputs; a compute step then shades that layer with the shared shade_surface,
-blends it under the front accumulation (dual: over the back one) and moves the pixel's bounds.
-Only fragments in front of the G-buffer depth are peeled; the composite puts the accumulated
-layers in front of the shaded opaque surface.
+composite pass (`geometry_in_composite`). A depth peeling pass keeps, per pixel, the nearest
+remaining fragment by its exact key (window depth, tie id) together with its packed shading
+inputs; a compute step then shades that layer with the shared shade_surface, blends it under the
+front accumulation and moves the pixel's bounds. A dual depth peeling pass (Bavoil and Myers'
+structure) shades the fragments at the pixel's two bounds in place, into the front and back
+accumulations, and keeps the nearest and farthest keys between them, which its step makes the
+next bounds. Only fragments in front of the G-buffer depth are peeled; the composite puts the
+accumulated layers in front of the shaded opaque surface.
 
 Why not the hardware depth test: moderngl only makes 24-bit depth textures, and an exact order
 with deterministic ties needs a 64-bit (depth, tie) comparison. The per-pass "depth buffer" is
@@ -55,7 +57,7 @@ EMPTY_NEAR_TIE = "uvec4(0u, 0u, 0u, GUA_TIE_MAX)"
 EMPTY_FAR = "uvec4(GUA_LOWEST, 0u, 0u, 0u)"
 ZERO = "uvec4(0u)"
 EMPTY_NEXT = "GUA_DUAL_EMPTY_NEXT"  # dual: nearest key +inf, farthest -1
-ORDERED_PHASES = ("nearest", "dual", "stencil")
+ORDERED_PHASES = ("nearest", "stencil")  # ordered phases that read and write `slots` (others: PeelKind.phases)
 _FETCH_EXT = "#extension GL_EXT_shader_framebuffer_fetch : require\n"
 _INTERLOCK_EXT = "#extension GL_ARB_fragment_shader_interlock : require\n"
 
@@ -108,7 +110,7 @@ class PeelKind:
     # geometry phases whose ordered state is not `slots`: (phase, textures read and written in order)
     phases: tuple[tuple[str, tuple[str, ...]], ...] = ()
     shading_phases: tuple[str, ...] = ()  # geometry phases that shade fragments in place (need the lights)
-    # dual: the init step starts each pixel's upper bound at its opaque depth (the pass tests only the bounds)
+    # dual: the init step starts each pixel's upper bound at its opaque depth (the first pass tests only it)
     upper_opaque: bool = False
     # storage of its own beside the textures (multi-layer peeling's node pool): made as storage(method)
     storage: Callable[[Peeling], Any] | None = None
