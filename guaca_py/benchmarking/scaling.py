@@ -16,7 +16,7 @@ scene through one method and one rasterizer setting, measured the same way:
 Parts: every --scene-names scene at every --sizes (square frames); the --stereo-scene as a stereo
 pair of --stereo-size² views (Renderer.render_views) against one --stereo-size x 2·--stereo-size
 frame; fields of --field copies of the --field-scene's first mesh file at --size², written as
-field_<n>.yaml beside the results (one mesh file, read once, uploaded once). Rows left when
+field_<n>.yaml into --field-dir (default: a temporary folder; one mesh file, read once, uploaded once). Rows left when
 --budget-s is spent are recorded as skipped; a row whose frames are slow takes fewer loop frames
 (--row-s) and says so.
 """
@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import tempfile
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -256,7 +257,8 @@ def run(args: argparse.Namespace, device, res: Results) -> dict:
     """Measure every row of plan(args) (those past --budget-s skipped); the record."""
     jobs = plan(args)
     progress = Progress(len(jobs))
-    scenes = SceneStore(args, res.dir, progress)
+    temporary = tempfile.TemporaryDirectory(prefix="guaca_field_") if args.field_dir is None else None
+    scenes = SceneStore(args, args.field_dir or Path(temporary.name), progress)
     renderers = Renderers(device.ctx)
     t0 = time.perf_counter()
     try:
@@ -276,6 +278,8 @@ def run(args: argparse.Namespace, device, res: Results) -> dict:
             progress.step(_line(row))
     finally:
         renderers.release()
+        if temporary is not None:
+            temporary.cleanup()
     return {
         "sizes": args.sizes,
         "methods": args.methods,
@@ -467,6 +471,7 @@ def parser(script: str) -> argparse.ArgumentParser:
     ap.add_argument("--eye-separation", type=float, default=0.3, help="stereo eye separation in scene units")
     ap.add_argument("--field", type=int, nargs="*", default=list(FIELD), help="copies in each field (--size² frames)")
     ap.add_argument("--field-scene", default="dragons", help="scene whose first mesh file the field repeats")
+    ap.add_argument("--field-dir", type=Path, help="where the field scenes are written (default: a temporary folder)")
     ap.add_argument("--budget-s", type=float, default=225.0, help="rows started after this many seconds are skipped")
     ap.add_argument("--row-s", type=float, default=6.0, help="fewer loop frames where --frames would take longer")
     ap.add_argument("--no-stages", dest="stages", action="store_false", help="no compute-rasterizer stage times")

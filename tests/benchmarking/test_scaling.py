@@ -36,7 +36,8 @@ def scenes(tmp_path_factory) -> Path:
 def run(scenes: Path, out: Path, *extra: str) -> dict:
     argv = ["--scenes", str(scenes), "--scene-names", "balls", "--sizes", "32", "--stereo-scene", "balls"]
     argv += ["--stereo-size", "32", "--field", "1", "3", "--field-scene", "balls", "--size", "32", "--frames", "3"]
-    argv += ["--methods", "presort_lf_et", "--raster", "hardware", "--no-stages", "--out", str(out), *extra]
+    argv += ["--methods", "presort_lf_et", "--raster", "hardware", "--no-stages", "--out", str(out)]
+    argv += ["--field-dir", str(out), *extra]
     assert scaling.main(str(Path(scaling.__file__).parents[2] / "benchmarks" / "paper_table.py"), argv) == 0
     return json.loads((out / "scaling.json").read_text())
 
