@@ -56,6 +56,7 @@ from guaca_py.benchmarking import (
     timer_sentence,
     top_clock,
 )
+from guaca_py.benchmarking.rows import flip_cell, stored_cell
 from guaca_py.methods import method_class, method_ids
 from guaca_py.reference import edge_pixels, exact_reference, frame_errors, linear_pipeline
 from guaca_py.scene.loader import load_scene
@@ -239,11 +240,8 @@ def markdown(rec: dict) -> str:
         if "skipped" in r:
             out.append(f"| {r['label']} | | {r['samples']} | skipped: {r['skipped']} | | | | | | |")
             continue
-        fl = f"{r['flip']:.4f}" if r.get("flip") is not None else "—"
+        fl, stored = flip_cell(r), stored_cell(r)
         node = r["memory"].get("abuffer_node_bytes", "—")
-        stored = r["fragments"].get("stored", "—")
-        if r["fragments"].get("overflow"):  # the pool was at the device's limit: the image lacks these
-            stored = f"{stored} (+{r['fragments']['overflow']} dropped)"
         star = "*" if below_max_clock(r.get("clock"), top) else ""
         marked = marked or bool(star)
         clock = f"{r['clock']['sm_clock_mhz_median']:g}" if r.get("clock") else "—"

@@ -18,6 +18,7 @@ from ..pipeline.config import PipelineConfig, pipeline_from_text
 from ..reference import linear_pipeline
 from .charts import plain_log_axis, time_label
 from .harness import timer_of, timer_sentence
+from .rows import flip_cell, stored_cell
 
 AA_METHOD = "presort_lf_et"  # the exact default
 SAMPLES = (2, 4, 8)
@@ -95,10 +96,7 @@ def markdown(recs: list[dict], command: Callable[[dict], str]) -> str:
             if "skipped" in r:
                 out.append(f"| {rec['scene']} | {r['label']} | | skipped: {r['skipped']} | | | | | | |")
                 continue
-            fl = f"{r['flip']:.4f}" if r.get("flip") is not None else "—"
-            stored = r["fragments"].get("stored", "—")
-            if r["fragments"].get("overflow"):
-                stored = f"{stored} (+{r['fragments']['overflow']} dropped)"
+            fl, stored = flip_cell(r), stored_cell(r)
             size = "x".join(map(str, r.get("render_resolution") or [rec["size"]] * 2))
             out.append(
                 f"| {rec['scene']} | {r['label']} | {r['samples']} | {r['ms']:.3f} | {r['edge_rmse_255']:.2f} | "

@@ -42,3 +42,15 @@ def config_rows(
         rows.append(row)
         report(row)
     return rows
+
+
+def flip_cell(row: dict) -> str:
+    """A row's FLIP for a table (— where flip-evaluator was not installed)."""
+    return f"{row['flip']:.4f}" if row.get("flip") is not None else "—"
+
+
+def stored_cell(row: dict) -> str:
+    """A row's stored fragments for a table, with those an overflowing pool dropped (the image lacks them)."""
+    fragments = row["fragments"]
+    stored = fragments.get("stored", "—")
+    return f"{stored} (+{fragments['overflow']} dropped)" if fragments.get("overflow") else f"{stored}"
