@@ -24,17 +24,13 @@ field_<n>.yaml into --field-dir (default: a temporary folder; one mesh file, rea
 from __future__ import annotations
 
 import argparse
-import contextlib
-import os
 import tempfile
 import time
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import moderngl
 
-from .. import env
 from ..errors import GuacaError
 from ..methods import auto
 from ..renderer import Renderer
@@ -58,20 +54,6 @@ _OWN = {"restore_host_state": False}  # the benchmark's own context: no host sta
 def next_exact_method(first: str = FIRST_METHOD) -> str:
     """The exact method methods/auto.py's NVIDIA table ranks fastest after `first`."""
     return next(m for m, _ in auto.NVIDIA.ranking() if m != first)
-
-
-@contextlib.contextmanager
-def raster_stages() -> Iterator[None]:
-    """GUACA_RASTER_STAGES=1 while the block runs: a compute rasterizer made then records its stages."""
-    old = os.environ.get(env.RASTER_STAGES)
-    os.environ[env.RASTER_STAGES] = "1"
-    try:
-        yield
-    finally:
-        if old is None:
-            os.environ.pop(env.RASTER_STAGES, None)
-        else:
-            os.environ[env.RASTER_STAGES] = old
 
 
 @dataclass
@@ -103,13 +85,13 @@ class Renderers:
         self._made: dict[tuple[str, str, bool], Renderer] = {}
 
     def get(self, method: str, raster: str, stages: bool = False) -> Renderer:
-        """The renderer of `method` through `raster` (`stages`: its twin whose compute rasterizer times stages;
-        use that one inside raster_stages())."""
+        """The renderer of `method` through `raster` (`stages`: its twin whose compute rasterizer times stages)."""
         key = (method, raster, stages)
         if key not in self._made:
-            self._made[key] = Renderer(
+            r = self._made[key] = Renderer(
                 "default", ctx=self.ctx, method=method, method_overrides={"raster": raster}, **_OWN
             )
+            r.raster.compute.profile_stages(stages)
         return self._made[key]
 
     def release(self) -> None:
@@ -241,10 +223,9 @@ def measure(job: Job, renderers: Renderers, scene: Scene, args: argparse.Namespa
     if frames < args.frames:
         row["note"] = f"{frames} loop frames: {args.frames} would take over --row-s {args.row_s:g} s"
     if args.stages and row["drew"]["compute"]:
-        with raster_stages():
-            twin = renderers.get(job.method, job.raster, stages=True)
-            job.draw(twin, scene, cameras)  # grows its pool and queues
-            staged = job.draw(twin, scene, cameras)
+        twin = renderers.get(job.method, job.raster, stages=True)
+        job.draw(twin, scene, cameras)  # grows its pool and queues
+        staged = job.draw(twin, scene, cameras)
         spans: dict[str, float] = {}
         for f in staged:
             for k, v in (f.stats.get("raster", {}).get("compute", {}).get("stage_ms") or {}).items():

@@ -159,7 +159,16 @@ class ComputeRasterizer:
         self.medium_area = MEDIUM_AREA
         self._materials: dict[int, tuple] = {}  # id(material) -> (material, ComputeMaterial)
         # GUACA_RASTER_STAGES=1: GPU time per stage in stats (reading it waits for the GPU: profiling only)
-        self._stages = Timestamps() if env.raster_stages() else None
+        self._stages: Timestamps | None = None
+        self.profile_stages(env.raster_stages())
+
+    def profile_stages(self, on: bool) -> None:
+        """Record the GPU time of each stage into stats (reading it waits for the GPU: profiling only)."""
+        if on and self._stages is None:
+            self._stages = Timestamps()
+        elif not on and self._stages is not None:
+            self._stages.release()
+            self._stages = None
 
     # ------------------------------------------------------------------ programs
     def _raster_vars(self) -> dict:

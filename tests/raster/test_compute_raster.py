@@ -737,6 +737,12 @@ def test_stage_profile_reports_each_stage(renderer_factory, monkeypatch):
         assert set(stages) == {"between_draws", "vertex", "order", "setup", "bin", "fine"}, stages
         assert all(v >= 0.0 for v in stages.values())
     assert len(r.raster.compute._stages._marks) == 0
+    # the same from the Python API, on and off again, without the environment
+    monkeypatch.delenv("GUACA_RASTER_STAGES")
+    plain.raster.compute.profile_stages(True)
+    assert set(plain.render(scene, 48, 48).stats["raster"]["compute"]["stage_ms"]) == set(stages)
+    plain.raster.compute.profile_stages(False)
+    assert "stage_ms" not in plain.render(scene, 48, 48).stats["raster"]["compute"]
 
 
 def test_triangles_of_many_fragments_go_to_a_workgroup(renderer_factory):
