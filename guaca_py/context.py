@@ -45,12 +45,18 @@ class Capabilities:
         return "64bit" if self.atomic_int64 else "32bit"
 
 
+def is_software(ctx) -> bool:
+    """Whether the context renders on the CPU (Mesa llvmpipe and its kin)."""
+    renderer = ctx.info.get("GL_RENDERER", "?").lower()
+    return any(k in renderer for k in ("llvmpipe", "softpipe", "swrast", "lavapipe"))
+
+
 def detect_capabilities(ctx, disable: tuple[str, ...] = ()) -> Capabilities:
     """Read extensions once; `disable` forces features off (for testing fallbacks)."""
     ext = ctx.extensions
     info = ctx.info
     renderer = info.get("GL_RENDERER", "?")
-    software = any(k in renderer.lower() for k in ("llvmpipe", "softpipe", "swrast", "lavapipe"))
+    software = is_software(ctx)
     caps = dict(
         atomic_int64="GL_NV_shader_atomic_int64" in ext and "GL_ARB_gpu_shader_int64" in ext,
         fragment_interlock="GL_ARB_fragment_shader_interlock" in ext,

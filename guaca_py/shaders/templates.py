@@ -9,6 +9,7 @@ from pathlib import Path
 import jinja2
 import numpy as np
 
+from ..context import is_software
 from ..errors import ShaderCompileError
 from ..resources import builtin_dir
 from . import slots
@@ -93,6 +94,10 @@ class ShaderLibrary:
             lstrip_blocks=True,
         )
         self.env.globals.update(slots.template_globals())  # binding slots by name: {{ Buffer.LIGHTS }}
+        # common/pack.glsl.j2's half rounding: integer arithmetic where a pack costs several times more
+        # (CPU rasterizers); elsewhere the device's own pack and unpack, whose rounding it must match
+        # (NVIDIA's packHalf2x16 does not round to nearest even, so an emulation would differ there)
+        self.env.globals["gua_round_half_emulated"] = is_software(ctx)
         self._programs: dict = {}
 
     def render(self, template: str, **variables) -> str:
