@@ -13,10 +13,18 @@ to the same frame at 1 sample (docs/antialiasing.md, "antialiasing: auto"):
   setup): `1 + 3 * a / (a + TRIANGLE_FRAGMENTS)`, the share of the frame that grows with the
   fragments being `a / (a + TRIANGLE_FRAGMENTS)` (a triangle of area `a` makes about `a` fragments).
 
-Supersample 2 is chosen where its estimate is lower (by HYSTERESIS when the previous frame ran
-the other mode, so a camera near the crossing does not switch every frame) and where the 1-sample
-fragments, four times over, fit the device's storage rule; 4 samples otherwise, and always for a
-method that cannot carry coverage masks (supersample 2 then) or a frame without transparent draws.
+The stated edge quality: an edge error no higher than supersample 2's. 4 coverage samples shade a
+triangle once per pixel (at the centroid of the samples it covers), supersampling once per sample;
+where the normals turn fast across the screen (NORMAL_TURN_MAX radians per pixel, median over the
+sampled triangles: hair and fibre seen from afar), the shading varies within a pixel and 4 samples
+miss it, so supersample 2 is taken there whatever it costs (hairball_v1 at 1024²: 0.88 rad/px, edge
+RMSE 5.39 with 4 samples, 3.54 with supersample 2, 4.45 even with 8 samples).
+
+Otherwise supersample 2 is chosen where its estimate is lower (by HYSTERESIS when the previous frame
+ran the other mode, so a camera near the crossing does not switch every frame). Either way it needs
+the 1-sample fragments, four times over, to fit the device's storage rule; 4 samples otherwise, and
+always for a method that cannot carry coverage masks (supersample 2 then) or a frame without
+transparent draws.
 """
 
 from __future__ import annotations
@@ -24,7 +32,7 @@ from __future__ import annotations
 import math
 
 from .pipeline.device import Antialiasing
-from .raster.choice import mean_projected_area
+from .raster.choice import mean_projected_area, normal_turn_per_px
 
 # The constants come from the H100 at 1024² (presort_lf_et, raster: auto; benchmarks/results/h100/
 # aa_cost/ and accuracy_scenes/; docs/antialiasing.md): 4 samples against 1 stored 3.08x the fragments
@@ -38,6 +46,11 @@ EDGE = 1.25  # fragment growth at 4 samples: 1 + EDGE / sqrt(area px²) (fit: 1.
 COVERAGE_FIXED = 1.46  # the 4-sample frame's cost where the triangles are large (Sponza: 1.51-1.57x)
 COVERAGE_EDGE = 0.83  # cost per unit of extra fragment growth (the dragons: 3.19x at 3.08x the fragments)
 TRIANGLE_FRAGMENTS = 0.48  # a triangle's fixed work in fragments' worth (the dragons' 2048² frame: 2.10x)
+# Edge quality (the H100 chart at 1024², benchmarks/results/h100/accuracy_scenes/aa_chart.md, and the
+# median normal turn per pixel of each scene's sampled triangles): 4 samples beat supersample 2's edge
+# RMSE on Sponza v1 / v2 (0.34 / 0.33 rad/px) and the hairball_v2 view (0.41), came within 8 % on the
+# dragons (0.17; 1.53 against 1.42) and fell short on hairball_v1 (0.88 rad/px: 5.39 against 3.54).
+NORMAL_TURN_MAX = 0.6
 HYSTERESIS = 0.1  # leave the previous frame's mode only for an estimate this much lower
 SUPERSAMPLE = 2
 COVERAGE_SAMPLES = 4
@@ -77,11 +90,18 @@ def choose(
     area = measured["mean_triangle_area_px"]
     cov, ss = coverage_cost(area), supersample_cost(area)
     costs = f"mean triangle area {area:.3g} px²: estimated cost x{cov:.2f} with 4 samples, x{ss:.2f} with supersample 2"
+    turn = measured.get("normal_turn_per_px", 0.0)
     need = SUPERSAMPLE**2 * measured["fragments_1x"] * measured.get("node_bytes", NODE_BYTES)
     if max_buffer_bytes is not None and need > max_buffer_bytes:
         return (
             "samples",
             f"{costs}; supersample 2 would store {need / 2**20:.0f} MiB of fragments, over the device's buffer",
+        )
+    if turn > NORMAL_TURN_MAX:
+        return (
+            "supersample",
+            f"normals turn {turn:.2f} rad per pixel (> {NORMAL_TURN_MAX}): shading varies within a pixel, "
+            f"4 samples (one shade per pixel) would miss the edge quality of supersample 2; {costs}",
         )
     margin = 1.0 - HYSTERESIS if previous == "samples" else 1.0 + HYSTERESIS
     if ss < cov * margin:
@@ -99,21 +119,24 @@ def fragment_growth(aa: Antialiasing, area_px: float) -> float:
 
 
 def measure(frame) -> dict:
-    """What the next frame decides from: the transparent triangles' mean projected area in output pixels
-    (weighted by triangle count) and the stored fragments as at 1 sample (divided by the mode's growth)."""
+    """What the next frame decides from: the transparent triangles' mean projected area in output pixels and
+    how fast their normals turn (radians per output pixel), both weighted by triangle count, and the stored
+    fragments as at 1 sample (divided by the mode's growth)."""
     w, h = frame.output_size
     vp = frame.projection @ frame.view
-    total = weight = 0.0
+    total = turns = weight = 0.0
     for d in frame.transparent_draws:
         area = mean_projected_area(d.mesh, d.world, vp, w, h)
         if area > 0:  # on screen
             total += area * d.mesh.triangle_count
+            turns += normal_turn_per_px(d.mesh, d.world, vp, w, h) * d.mesh.triangle_count
             weight += d.mesh.triangle_count
     area = total / weight if weight else 0.0
     one = frame.stats.get("fragments", {}).get("stored", 0) / fragment_growth(frame.device.antialiasing, area)
     out = {
         "transparent_draws": len(frame.transparent_draws),
         "mean_triangle_area_px": round(area, 4),
+        "normal_turn_per_px": round(turns / weight if weight else 0.0, 4),
         "fragments_1x": int(one),
         "fragments_per_pixel_1x": round(one / (w * h), 3),
     }

@@ -9,6 +9,7 @@ from test_antialiasing import random_quads
 from guaca_py.antialiasing import with_samples, with_settings, with_supersample
 from guaca_py.antialiasing_auto import (
     HYSTERESIS,
+    NORMAL_TURN_MAX,
     choose,
     coverage_cost,
     supersample_cost,
@@ -137,3 +138,38 @@ def test_auto_setting_parsed_and_overridden():
         )
     assert with_samples(AUTO, 4).antialiasing == {"samples": 4, "supersample": 1, "auto": False}
     assert with_settings(with_supersample(EXACT, 3), "auto", "t").antialiasing["supersample"] == 1
+
+
+def test_auto_supersamples_where_normals_turn_within_a_pixel():
+    """The edge-quality rule: where normals turn faster than NORMAL_TURN_MAX per pixel, 4 samples (one shade per
+    pixel) fall short of supersample 2's edge error, so auto supersamples even where 4 samples cost less; the
+    storage rule still comes first."""
+    large = crossing() * 16  # triangles where 4 samples are the cheaper estimate
+    assert choose({**measured(large), "normal_turn_per_px": NORMAL_TURN_MAX * 0.5}, "samples", None, None)[0] == "samples"
+    mode, why = choose({**measured(large), "normal_turn_per_px": NORMAL_TURN_MAX * 1.5}, "samples", None, None)
+    assert mode == "supersample" and "rad per pixel" in why and "estimated cost" in why
+    too_many = {**measured(large, fragments=10_000_000), "normal_turn_per_px": NORMAL_TURN_MAX * 1.5}
+    assert choose(too_many, "samples", None, 1 << 30)[0] == "samples"
+
+
+def test_auto_measures_the_normal_turn_of_the_frame(renderer_factory):
+    """A frame's measurement carries the transparent triangles' normal turn: 0 for flat grids, and a grid whose
+    normals fan out turns them within each pixel, so the next frame is supersampled."""
+    r = renderer_factory(AUTO)
+    size = 32
+    flat = random_quads(1)
+    r.render(flat, size, size)
+    frame = r.render(flat, size, size)
+    assert frame.stats["antialiasing"]["auto"]["previous_frame"]["normal_turn_per_px"] == 0.0
+    assert frame.stats["antialiasing"]["auto"]["chose"] == "samples 4"
+    grid = fine_grid(8)
+    xy = grid.positions[:, :2]
+    # 7 rad per unit: 2.1 rad across a 0.3-unit cell of about 2 px
+    fan = np.stack([np.sin(7 * xy[:, 0]), np.zeros(len(xy)), np.cos(7 * xy[:, 0])], axis=1).astype(np.float32)
+    bumpy = MeshData(positions=grid.positions, normals=fan, texcoords=grid.texcoords, indices=grid.indices, name="fan")
+    scene = Scene(camera=origin_camera(), nodes=[Node("fan", Transform((0, 0, 0), (0, 0, 0)), bumpy, unlit((1, 1, 1), 0.5))])
+    r.render(scene, size, size)
+    frame = r.render(scene, size, size)
+    auto = frame.stats["antialiasing"]["auto"]
+    assert auto["previous_frame"]["normal_turn_per_px"] > NORMAL_TURN_MAX, auto
+    assert auto["chose"] == "supersample 2" and "rad per pixel" in auto["why"]

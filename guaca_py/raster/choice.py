@@ -33,8 +33,8 @@ RASTER_ORDER_SETTING = Setting(
 AUTO_MAX_MEAN_AREA_PX = 16384.0
 SAMPLE_TRIANGLES = 256  # triangles per mesh sampled for the estimate (fixed seed, cached)
 
-_areas: dict[tuple, float] = {}  # (mesh id, world, view-projection, size) -> mean area
-_samples: dict[int, tuple[weakref.ref, np.ndarray]] = {}  # id(mesh) -> (weak mesh, sample): meshes may go
+_areas: dict[tuple, float] = {}  # (estimate, mesh id, world, view-projection, size) -> value
+_samples: dict[int, tuple[weakref.ref, tuple]] = {}  # id(mesh) -> (weak mesh, sample): meshes may go
 
 
 def auto_rule() -> str:
@@ -76,8 +76,9 @@ def device_rule(caps) -> str:
     return auto_rule()
 
 
-def _sample(mesh) -> np.ndarray:
-    """A fixed sample of the mesh's triangle corners as homogeneous object-space points (k·3, 4), cached."""
+def _sample(mesh) -> tuple[np.ndarray, np.ndarray | None]:
+    """A fixed sample of the mesh's triangles: corners as homogeneous object-space points (k·3, 4) and
+    their vertex normals (k·3, 3; None for a mesh without normals), cached."""
     hit = _samples.get(id(mesh))
     if hit is not None and hit[0]() is mesh:
         return hit[1]
@@ -86,30 +87,67 @@ def _sample(mesh) -> np.ndarray:
         idx = idx[np.random.default_rng(0).choice(len(idx), SAMPLE_TRIANGLES, replace=False)]
     corners = np.asarray(mesh.positions, dtype=np.float64)[idx.ravel()]
     points = np.hstack([corners, np.ones((len(corners), 1))])
+    normals = getattr(mesh, "normals", None)
+    normals = None if normals is None else np.asarray(normals, dtype=np.float64)[idx.ravel()]
     key = id(mesh)
-    _samples[key] = (weakref.ref(mesh, lambda _ref, key=key: _samples.pop(key, None)), points)
-    return points
+    _samples[key] = (weakref.ref(mesh, lambda _ref, key=key: _samples.pop(key, None)), (points, normals))
+    return points, normals
+
+
+def _on_screen(mesh, world: np.ndarray, view_projection: np.ndarray, width: int, height: int):
+    """The sampled triangles in front of the near plane and on screen: (corners in pixels (n, 3, 2), their
+    row indices into the sample)."""
+    points, _ = _sample(mesh)
+    clip = (points @ (view_projection @ world).T).reshape(-1, 3, 4)
+    keep = (clip[..., 2] > -clip[..., 3]).all(axis=1)  # all corners in front of the near plane (z > -w)
+    half = 0.5 * np.array([width, height])
+    xy = clip[..., :2] / np.where(keep[:, None, None], clip[..., 3:4], 1.0) * half + half
+    lo, hi = xy.min(axis=1), xy.max(axis=1)
+    keep &= ((hi >= 0) & (lo <= (width, height))).all(axis=1)
+    rows = np.flatnonzero(keep)
+    return xy[rows], rows
+
+
+def _cached(key: tuple, compute) -> float:
+    """A per-(mesh, world, camera, size) estimate: the common case is an unchanged draw and camera."""
+    hit = _areas.get(key)
+    if hit is None:
+        if len(_areas) >= 256:  # bounded: a moving camera or node makes every key new
+            _areas.clear()
+        hit = _areas[key] = compute()
+    return hit
 
 
 def mean_projected_area(mesh, world: np.ndarray, view_projection: np.ndarray, width: int, height: int) -> float:
     """Mean screen area in px² of the sampled triangles in front of the near plane and on screen (0: none)."""
-    points = _sample(mesh)
-    key = (id(mesh), world.tobytes(), view_projection.tobytes(), width, height)
-    hit = _areas.get(key)
-    if hit is not None:  # the common case: an unchanged draw and camera
-        return hit
-    clip = (points @ (view_projection @ world).T).reshape(-1, 3, 4)
-    # triangles with all corners in front of the near plane (z > -w)
-    clip = clip[(clip[..., 2] > -clip[..., 3]).all(axis=1)]
-    xy = clip[..., :2] / clip[..., 3:4] * (0.5 * np.array([width, height])) + 0.5 * np.array([width, height])
-    lo, hi = xy.min(axis=1), xy.max(axis=1)
-    xy = xy[((hi >= 0) & (lo <= (width, height))).all(axis=1)]  # on screen
-    e1, e2 = xy[:, 1] - xy[:, 0], xy[:, 2] - xy[:, 0]
-    area = float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).mean()) * 0.5 if len(xy) else 0.0
-    if len(_areas) >= 256:  # bounded: a moving camera or node makes every key new
-        _areas.clear()
-    _areas[key] = area
-    return area
+
+    def compute() -> float:
+        xy, _ = _on_screen(mesh, world, view_projection, width, height)
+        e1, e2 = xy[:, 1] - xy[:, 0], xy[:, 2] - xy[:, 0]
+        return float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).mean()) * 0.5 if len(xy) else 0.0
+
+    return _cached(("area", id(mesh), world.tobytes(), view_projection.tobytes(), width, height), compute)
+
+
+def normal_turn_per_px(mesh, world: np.ndarray, view_projection: np.ndarray, width: int, height: int) -> float:
+    """Median over the sampled on-screen triangles of how fast the interpolated normal turns across the
+    screen: the largest angle between two corners' normals over the length of their edge, radians per
+    pixel (0: no normals or nothing on screen). Shading varies within a pixel where this is large."""
+
+    def compute() -> float:
+        xy, rows = _on_screen(mesh, world, view_projection, width, height)
+        _, normals = _sample(mesh)
+        if normals is None or not len(rows):
+            return 0.0
+        n = normals.reshape(-1, 3, 3)[rows] @ np.linalg.inv(world[:3, :3])  # the normal matrix, on row vectors
+        n /= np.maximum(np.linalg.norm(n, axis=2, keepdims=True), 1e-30)
+        turns = []
+        for a, b in ((0, 1), (0, 2), (1, 2)):
+            angle = np.arccos(np.clip((n[:, a] * n[:, b]).sum(axis=1), -1.0, 1.0))
+            turns.append(angle / np.maximum(np.hypot(*(xy[:, b] - xy[:, a]).T), 1e-3))
+        return float(np.median(np.max(turns, axis=0)))
+
+    return _cached(("turn", id(mesh), world.tobytes(), view_projection.tobytes(), width, height), compute)
 
 
 def compute_kernels_draw(raster: str | None, caps) -> bool:
