@@ -145,7 +145,9 @@ def test_auto_supersamples_where_normals_turn_within_a_pixel():
     pixel) fall short of supersample 2's edge error, so auto supersamples even where 4 samples cost less; the
     storage rule still comes first."""
     large = crossing() * 16  # triangles where 4 samples are the cheaper estimate
-    assert choose({**measured(large), "normal_turn_per_px": NORMAL_TURN_MAX * 0.5}, "samples", None, None)[0] == "samples"
+    assert (
+        choose({**measured(large), "normal_turn_per_px": NORMAL_TURN_MAX * 0.5}, "samples", None, None)[0] == "samples"
+    )
     mode, why = choose({**measured(large), "normal_turn_per_px": NORMAL_TURN_MAX * 1.5}, "samples", None, None)
     assert mode == "supersample" and "rad per pixel" in why and "estimated cost" in why
     too_many = {**measured(large, fragments=10_000_000), "normal_turn_per_px": NORMAL_TURN_MAX * 1.5}
@@ -167,7 +169,9 @@ def test_auto_measures_the_normal_turn_of_the_frame(renderer_factory):
     # 7 rad per unit: 2.1 rad across a 0.3-unit cell of about 2 px
     fan = np.stack([np.sin(7 * xy[:, 0]), np.zeros(len(xy)), np.cos(7 * xy[:, 0])], axis=1).astype(np.float32)
     bumpy = MeshData(positions=grid.positions, normals=fan, texcoords=grid.texcoords, indices=grid.indices, name="fan")
-    scene = Scene(camera=origin_camera(), nodes=[Node("fan", Transform((0, 0, 0), (0, 0, 0)), bumpy, unlit((1, 1, 1), 0.5))])
+    scene = Scene(
+        camera=origin_camera(), nodes=[Node("fan", Transform((0, 0, 0), (0, 0, 0)), bumpy, unlit((1, 1, 1), 0.5))]
+    )
     r.render(scene, size, size)
     frame = r.render(scene, size, size)
     auto = frame.stats["antialiasing"]["auto"]
