@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..pipeline.resources import HOST_MARK
+from ..raster.choice import LARGE_FRAME_PIXELS
+from ..raster.compute_raster import ORDER_TILE_BITS
 from ..pipeline.retry import settle
 from ..registry import register
 from ..shaders import set_uniform
@@ -14,6 +16,15 @@ from .base import FullscreenPass
 def composite_edge(supersample: int) -> int:
     """Workgroup edge of the composite: 8, or the multiple of `supersample` from 8 up (whole blocks per group)."""
     return supersample * -(-8 // supersample)
+
+
+def composite_strip(width: int, height: int, edge: int) -> int:
+    """Workgroups per launch strip of the composite over a rendered frame of `width` x `height`: in
+    frames the compute rasterizer takes in tile order (raster/choice.py), a screen tile's width, so
+    the workgroups in flight read one tile's nodes; 0 (row by row) in smaller frames."""
+    if width * height <= LARGE_FRAME_PIXELS:
+        return 0
+    return max(1, -(-(width >> ORDER_TILE_BITS) // edge))
 
 
 @register("pass")
@@ -100,6 +111,7 @@ class CompositePass(FullscreenPass):
             },
             scale=frame.supersample,  # an invocation per rendered pixel
             edge=composite_edge(frame.supersample),
+            strip=composite_strip(frame.width, frame.height, composite_edge(frame.supersample)),
         )
         if store is not None:
             store.after_composite(frame)
