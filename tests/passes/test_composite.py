@@ -13,12 +13,14 @@ from guaca_py.raster.choice import LARGE_FRAME_PIXELS
 from guaca_py.raster.compute_raster import ORDER_TILE_BITS
 
 
-def test_strips_are_a_screen_tile_wide_in_tile_order_frames_only():
+def test_strips_are_screen_tiles_wide_in_tile_order_frames_only():
     side = int(LARGE_FRAME_PIXELS**0.5)
     assert composite.composite_strip(side, side, 8) == 0  # depth order: row by row
     big = 2 * side
-    assert composite.composite_strip(big, big, 8) == (big >> ORDER_TILE_BITS) // 8
-    assert composite.composite_strip(big + 8, big, 8) == -(-((big + 8) >> ORDER_TILE_BITS) // 8)
+    tile = big >> ORDER_TILE_BITS
+    assert composite.composite_strip(big, big, 8) == composite.STRIP_TILES * tile // 8
+    wider = (big + 64) >> ORDER_TILE_BITS
+    assert composite.composite_strip(big + 64, big, 8) == -(-(composite.STRIP_TILES * wider) // 8)
 
 
 @pytest.mark.parametrize("supersample", [1, 2])
