@@ -138,11 +138,12 @@ class FullscreenPass(Pass):
         return self._target
 
     def run_fullscreen(
-        self, frame: FrameContext, prog, inputs: dict, scale: int = 1, edge: int = 8
+        self, frame: FrameContext, prog, inputs: dict, scale: int = 1, edge: int = 8, strip: int = 0
     ) -> moderngl.Texture:
         """Bind input textures to units, write every pixel of the target, return the output texture.
 
-        A compute pass runs `scale` x `scale` invocations per output pixel in `edge` x `edge` workgroups.
+        A compute pass runs `scale` x `scale` invocations per output pixel in `edge` x `edge` workgroups,
+        launched in strips `strip` workgroups wide (0: row by row; post/compute_pass.glsl.j2).
         """
         fbo = self.target(frame)
         for unit, (uname, tex) in enumerate(inputs.items(), start=Texture.PASS_INPUTS):
@@ -153,6 +154,7 @@ class FullscreenPass(Pass):
             out.bind_to_image(Image.PASS_OUTPUT, read=False, write=True)
             w, h = frame.output_size
             set_uniform(prog, "gua_size", (w, h))
+            set_uniform(prog, "gua_group_strip", strip)
             prog.run(-(-w * scale // edge), -(-h * scale // edge), 1)
             self.ctx.memory_barrier(IMAGE_OUTPUT_BARRIERS)  # later passes sample the result (or read it back)
             return out

@@ -6,6 +6,8 @@ import numpy as np
 
 from ..pipeline.resources import HOST_MARK
 from ..pipeline.retry import settle
+from ..raster.choice import LARGE_FRAME_PIXELS
+from ..raster.compute_raster import ORDER_TILE_BITS
 from ..registry import register
 from ..shaders import set_uniform
 from .base import FullscreenPass
@@ -14,6 +16,22 @@ from .base import FullscreenPass
 def composite_edge(supersample: int) -> int:
     """Workgroup edge of the composite: 8, or the multiple of `supersample` from 8 up (whole blocks per group)."""
     return supersample * -(-8 // supersample)
+
+
+# Launch strips two screen tiles wide. H100, presort_lf_et, composite ms (rows / 1 tile / 2 tiles / half a
+# tile): hairball_v1 at 4096² 6.49 / 3.40 / 2.65 / 5.87 (52M nodes), the dragons at 4096² 1.135 / 1.15 /
+# 1.10 / 1.21, hairball_v1 at 3072² 1.26 / 1.31 / 1.29 / 1.43 (docs/decisions.md, 2026-11-28).
+STRIP_TILES = 2
+
+
+def composite_strip(width: int, height: int, edge: int) -> int:
+    """Workgroups per launch strip of the composite over a rendered frame of `width` x `height`: in
+    frames the compute rasterizer takes in tile order (raster/choice.py), STRIP_TILES screen tiles
+    wide, so the workgroups in flight read a few tiles' nodes (a row of the frame crosses every tile,
+    and their nodes together outgrow the GPU's cache); 0 (row by row) in smaller frames."""
+    if width * height <= LARGE_FRAME_PIXELS:
+        return 0
+    return max(1, -(-(STRIP_TILES * (width >> ORDER_TILE_BITS)) // edge))
 
 
 @register("pass")
@@ -100,6 +118,7 @@ class CompositePass(FullscreenPass):
             },
             scale=frame.supersample,  # an invocation per rendered pixel
             edge=composite_edge(frame.supersample),
+            strip=composite_strip(frame.width, frame.height, composite_edge(frame.supersample)),
         )
         if store is not None:
             store.after_composite(frame)
