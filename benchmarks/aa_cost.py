@@ -150,10 +150,8 @@ def main(argv: list[str] | None = None) -> int:
         progress = Progress(len(args.paths) * len(scene_paths(args)) * len(configs(args)))
         name, rows = run(args, progress)
         res = Results(args, name, argv)
-        res.write_json({"rows": rows})
-        rec = {"device": name, "command": res.command, "rows": rows}
-    res.write_markdown(markdown(rec))
-    print(f"wrote {res.dir}/aa_cost.md, .json", flush=True)
+        rec = {"rows": rows}
+    res.finish(rec, markdown, measured=not args.replot)
     return 0
 
 

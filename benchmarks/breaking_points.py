@@ -63,12 +63,7 @@ def main(argv: list[str] | None = None) -> int:
         device = open_device()
         res = Results(args, device.name, argv)
         data = run(device.ctx, args.size, args.layers)
-        res.write_json(data)
-        data["command"] = res.command
-    md = table(data) + f"\nCommand: `{data.get('command', res.command)}`\n"
-    res.write_markdown(md)
-    res.write_chart(chart(data))
-    print(md)
+    print(res.finish(data, lambda d: table(d) + f"\nCommand: `{d['command']}`\n", chart, measured=not args.replot))
     return 0
 
 

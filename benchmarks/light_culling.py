@@ -205,13 +205,8 @@ def main(argv: list[str] | None = None) -> int:
         rec = res.read_json()
     else:
         rec = run_per_process(args) if args.per_process else run(args)
-        res = Results(args, rec.pop("device"), argv)
-        rec.pop("command", None)
-        res.write_json(rec)
-        rec.update(device=res.device, command=res.command)
-    res.write_markdown(markdown(rec))
-    res.write_chart(chart(rec))
-    print(f"wrote {res.dir}/light_culling.md, .json, .png", flush=True)
+        res = Results(args, rec["device"], argv)
+    res.finish(rec, markdown, chart, measured=not args.replot)
     return 0
 
 

@@ -60,12 +60,13 @@ def main(argv: list[str] | None = None) -> int:
         device = open_device()
         res = Results(args, device.name, argv)
         data = run(device, args, res.command)
-        res.write_json(data)
-        data["command"] = res.command
-    md = table(data["rows"], data["meta"], data.get("command"))
-    res.write_markdown(md)
-    res.write_chart(chart(data["rows"], data["meta"]))
-    print(md)
+    page = res.finish(
+        data,
+        lambda d: table(d["rows"], d["meta"], d.get("command")),
+        lambda d: chart(d["rows"], d["meta"]),
+        measured=not args.replot,
+    )
+    print(page)
     return 0
 
 

@@ -393,10 +393,7 @@ def main(argv: list[str] | None = None) -> int:
         if not args.skip_stacks:
             stack_rows(args, device.ctx, out, progress)
         scene_rows(args, device.ctx, out, progress, paths)
-        res.write_json({k: v for k, v in out.items() if k not in ("device", "command")})
-    res.write_markdown(markdown(out))
-    res.write_chart(chart(out))
-    print(f"wrote {res.dir}/paper_table.md, .json, .png", flush=True)
+    res.finish(out, markdown, chart, measured=not args.replot)
     return 0
 
 

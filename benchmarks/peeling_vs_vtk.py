@@ -263,10 +263,7 @@ def main(argv: list[str] | None = None) -> int:
         device = open_device()
         res = Results(a, device.name, argv)
         data = run(a, device, res.command)
-        res.write_json(data)
-    md = markdown(data)
-    res.write_markdown(md)
-    print(md)
+    print(res.finish(data, markdown, measured=not a.replot))
     return 0
 
 

@@ -158,12 +158,8 @@ def main(argv: list[str] | None = None) -> int:
             "auto_max_mean_area_px": AUTO_MAX_MEAN_AREA_PX,
             "rows": rows,
         }
-        res.write_json(rec)
-        rec.update(device=device.name, command=res.command)
         device.release()
-    res.write_markdown(markdown(rec))
-    res.write_chart(chart(rec))
-    print(f"wrote {res.dir}/raster_sweep.md, .json, .png", flush=True)
+    res.finish(rec, markdown, chart, measured=not args.replot)
     return 0
 
 

@@ -173,6 +173,29 @@ class Results:
         plt.close(fig)
         return path
 
+    def finish(
+        self,
+        rec: dict,
+        markdown: Callable[[dict], str],
+        chart: Callable[[dict], Callable[[object], object]] | None = None,
+        *,
+        measured: bool,
+    ) -> str:
+        """The end of a run or a --replot: a measured record is written as <name>.json (device and
+        command beside it); then the page (`markdown(rec)`) and the chart (`chart(rec)`, a draw
+        function for write_chart) from the record with its device and command. Returns the page."""
+        if measured:
+            rec = {k: v for k, v in rec.items() if k not in ("device", "command")}
+            self.write_json(rec)
+            rec = {**rec, "device": self.device, "command": self.command}
+        page = markdown(rec)
+        written = [self.write_markdown(page)]
+        if chart is not None:
+            written.append(self.write_chart(chart(rec)))
+        names = ", ".join(p.name for p in written if p is not None) + (f", {self.name}.json" if measured else "")
+        print(f"wrote {self.dir}/: {names}", flush=True)
+        return page
+
 
 def header(title: str, device: str, command: str, timer: str | None) -> list[str]:
     """The opening lines of a benchmark's Markdown: title, device, what its times are, the command."""

@@ -471,10 +471,6 @@ def main(script: str, argv: list[str]) -> int:
         res = Results(args, device.name, command_argv, name=NAME)
         rec = run(args, device, res)
         rec["field_size"] = args.size
-        res.write_json(rec)
-        rec.update(device=device.name, command=res.command)
         device.release()
-    res.write_markdown(markdown(rec))
-    res.write_chart(chart(rec))
-    print(f"wrote {res.dir}/{NAME}.md, .json, .png", flush=True)
+    res.finish(rec, markdown, chart, measured=not args.replot)
     return 0
