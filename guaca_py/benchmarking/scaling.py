@@ -9,7 +9,7 @@ scene through one method and one rasterizer setting, measured the same way:
   90% of the maximum are measured again (clock.at_full_clock);
 - one timed frame after it (read back): GPU time per pass, fragments stored, overflow and drops,
   the transparent pool (bytes, bytes per node), which rasterizer drew what; the compute
-  rasterizer's per-stage times come from a second renderer made under GUACA_RASTER_STAGES=1
+  rasterizer's per-stage times come from a second renderer with its stage profile on (profile_stages)
   (reading them waits for the GPU, so the measured renderer never has them);
 - ns per stored fragment: the loop wall over the fragments stored.
 
