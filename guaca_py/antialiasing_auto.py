@@ -18,7 +18,8 @@ triangle once per pixel (at the centroid of the samples it covers), supersamplin
 where the normals turn fast across the screen (NORMAL_TURN_MAX radians per pixel, median over the
 sampled triangles: hair and fibre seen from afar), the shading varies within a pixel and 4 samples
 miss it, so supersample 2 is taken there whatever it costs (hairball_v1 at 1024²: 0.88 rad/px, edge
-RMSE 5.39 with 4 samples, 3.54 with supersample 2, 4.45 even with 8 samples).
+RMSE 5.39 with 4 samples, 3.54 with supersample 2, 4.45 even with 8 samples), with the HYSTERESIS
+of the costs around the line.
 
 Otherwise supersample 2 is chosen where its estimate is lower (by HYSTERESIS when the previous frame
 ran the other mode, so a camera near the crossing does not switch every frame). Either way it needs
@@ -97,10 +98,12 @@ def choose(
             "samples",
             f"{costs}; supersample 2 would store {need / 2**20:.0f} MiB of fragments, over the device's buffer",
         )
-    if turn > NORMAL_TURN_MAX:
+    # with the same hysteresis as the costs: a camera near the line does not switch every frame
+    line = NORMAL_TURN_MAX * {"samples": 1.0 + HYSTERESIS, "supersample": 1.0 - HYSTERESIS}.get(previous, 1.0)
+    if turn > line:
         return (
             "supersample",
-            f"normals turn {turn:.2f} rad per pixel (> {NORMAL_TURN_MAX}): shading varies within a pixel, "
+            f"normals turn {turn:.2f} rad per pixel (> {line:.2f}): shading varies within a pixel, "
             f"4 samples (one shade per pixel) would miss the edge quality of supersample 2; {costs}",
         )
     margin = 1.0 - HYSTERESIS if previous == "samples" else 1.0 + HYSTERESIS

@@ -150,6 +150,13 @@ def test_auto_supersamples_where_normals_turn_within_a_pixel():
     )
     mode, why = choose({**measured(large), "normal_turn_per_px": NORMAL_TURN_MAX * 1.5}, "samples", None, None)
     assert mode == "supersample" and "rad per pixel" in why and "estimated cost" in why
+    # near the line the previous frame's mode stays (HYSTERESIS, as for the costs)
+    near = {**measured(large), "normal_turn_per_px": NORMAL_TURN_MAX * (1 + HYSTERESIS / 2)}
+    assert choose(near, "samples", None, None)[0] == "samples"
+    assert choose(near, None, None, None)[0] == "supersample"
+    near_below = {**measured(large), "normal_turn_per_px": NORMAL_TURN_MAX * (1 - HYSTERESIS / 2)}
+    assert choose(near_below, "supersample", None, None)[0] == "supersample"
+    assert choose(near_below, "samples", None, None)[0] == "samples"
     too_many = {**measured(large, fragments=10_000_000), "normal_turn_per_px": NORMAL_TURN_MAX * 1.5}
     assert choose(too_many, "samples", None, 1 << 30)[0] == "samples"
 
