@@ -19,7 +19,7 @@ Writes benchmarks/results/<device>/paper_table/paper_table.{json,md,png}.
 work on the dragons and hairball_v1: frame sizes 512² to 4096², a stereo pair of 2048² views
 (Renderer.render_views) against one 2048x4096 frame, fields of 1 to 64 dragons; presort_lf_et and
 the next fastest exact method, `raster: auto` beside `hardware`. Writes
-benchmarks/results/<device>/scaling/scaling.{json,md,png} and the fields' field_<n>.yaml.
+benchmarks/results/<device>/paper_table/scaling.{json,md,png} and the fields' field_<n>.yaml.
 """
 
 from __future__ import annotations

@@ -116,9 +116,9 @@ class Results:
 
     def __init__(self, args: argparse.Namespace, device: str, argv: list[str] | None = None, name: str | None = None):
         script = Path(args.script)
-        self.name = name or script.stem  # a mode of a script (paper_table.py scaling) writes a folder of its own
+        self.name = name or script.stem  # a mode of a script (paper_table.py scaling) names its own files
         self.device = device
-        self.dir = args.out or script.parent / "results" / device_slug(device) / self.name
+        self.dir = args.out or script.parent / "results" / device_slug(device) / script.stem  # one folder a script
         argv = sys.argv[1:] if argv is None else argv
         self.command = f"python benchmarks/{script.name} {shlex.join(argv)}".rstrip()
 

@@ -460,7 +460,7 @@ def parser(script: str) -> argparse.ArgumentParser:
 
 
 def main(script: str, argv: list[str]) -> int:
-    """`paper_table.py scaling ARGS`: measure (or --replot) and write benchmarks/results/<device>/scaling/."""
+    """`paper_table.py scaling ARGS`: measure (or --replot) and write benchmarks/results/<device>/paper_table/scaling.*."""
     args = parser(script).parse_args(argv)
     command_argv = [NAME, *argv]
     if args.replot:
