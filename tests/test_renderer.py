@@ -121,21 +121,12 @@ def test_views_share_one_pool_sized_for_the_largest(renderer_factory, monkeypatc
         views = r.render_views(scene, cams, SIZE, SIZE, read_back=read_back)
     first = pools.index(pools[-1])
     assert set(pools[first:]) == {pools[-1]}  # the same pool since, at every view
-    if method == "paged_ll" and not r.caps.software:
-        # on a GPU the pages a frame wastes (a page taken by a pixel whose list another lane is
-        # also extending) vary from frame to frame: a later call may grow the pool once more,
-        # never shrink it, and the views of a call still share it
-        sizes = [capacity for capacity, _ in pools]
-        assert sizes == sorted(sizes) and first <= len(pools) - 2
-    else:
-        assert first <= len(pools) - 4  # over two whole calls at least
+    assert first <= len(pools) - 4  # over two whole calls at least
     allocated = [{k: b for k, b in v.stats["memory"].items() if not k.endswith("_used")} for v in views]
     assert allocated[0] == allocated[1]
     stored = [v.stats["fragments"]["stored"] for v in views]
     assert stored[0] > 4 * stored[1] > 0
-    # nothing dropped (a pool grown and the frame re-rendered, as above, drops nothing)
-    assert not any("overflow" in w and "re-rendered" not in w for v in views for w in v.stats.get("warnings", []))
-    assert all(v.stats["fragments"].get("dropped", v.stats["fragments"].get("overflow", 0)) == 0 for v in views)
+    assert not any("overflow" in w for v in views for w in v.stats.get("warnings", []))
 
 
 def test_view_textures_expire_with_the_next_call(renderer_factory):

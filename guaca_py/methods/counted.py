@@ -336,7 +336,12 @@ class CountedStorage(TransparencyMethod):
             "early_termination_culled": 0,
         }
         self._last = {"used_pages": used, "stored": c["stored"]}
-        largest = self._views_need(frame, used)  # of this call's views, known at its last
+        # Pages lost to races (allocated, not published) vary from frame to frame on a GPU: the pool
+        # keeps this frame's loss once more as margin, so a later frame that loses more (the same
+        # scene, another call) fits instead of growing the pool again (seen on the H100: a steady
+        # two-view scene regrew in its third call).
+        margin = c["wasted_pages"]
+        largest = self._views_need(frame, used + margin)  # of this call's views, known at its last
         auto = self.settings["budget_mb"] == "auto"
         limit = self._page_limit(frame.ctx)
         regrown = frame.stats.get("regrown", 0)  # re-renders of this frame so far
@@ -346,7 +351,7 @@ class CountedStorage(TransparencyMethod):
             # one pixel share pages, so used + overflow / P bounds it from below. Grow to the lower
             # bound and take the upper one on the last re-render max_regrow allows.
             last = regrown + 1 >= self.settings["max_regrow"]
-            need = requested if last else used + math.ceil(c["overflow"] / self.page)
+            need = (requested if last else used + math.ceil(c["overflow"] / self.page)) + margin
             self._want = min(limit, int(need * 1.15) + 1024)
             self._warn(
                 frame,
