@@ -54,7 +54,6 @@ COUNTERS = (
 )
 EMPTY_NEAR = "uvec4(GUA_INF, 0u, 0u, 0u)"  # slot clears (GLSL) of step.comp.j2's init step
 EMPTY_NEAR_TIE = "uvec4(0u, 0u, 0u, GUA_TIE_MAX)"
-EMPTY_FAR = "uvec4(GUA_LOWEST, 0u, 0u, 0u)"
 ZERO = "uvec4(0u)"
 EMPTY_NEXT = "GUA_DUAL_EMPTY_NEXT"  # dual: nearest key +inf, farthest -1
 ORDERED_PHASES = ("nearest", "stencil")  # ordered phases that read and write `slots` (others: PeelKind.phases)
@@ -101,8 +100,9 @@ class PeelKind:
 
     step_method: str  # `method` variable of peeling/step.comp.j2
     render: Callable[[Peeling, Any], None]  # geometry passes and steps until done: render(method, frame)
-    # ordered per-pixel state the geometry passes read and write (the emulated depth buffer), in
-    # slot order: (texture name, components of uint32, value the init step clears it to in GLSL)
+    # ordered per-pixel state the steps read and write (gua_slotN of step.comp.j2), in slot order:
+    # (texture name, components of uint32, value the init step clears it to in GLSL); the geometry
+    # passes use these too unless `phases` names theirs (dual)
     slots: tuple[tuple[str, int, str], ...] = ()
     has_back: bool = False  # a back accumulation (dual)
     has_range: bool = False  # a per-pixel compositing range texture (hybrid, coherent)
@@ -173,7 +173,7 @@ class Peeling(TransparencyMethod):
         return specs
 
     def slot_names(self) -> list[str]:
-        """Textures holding the ordered per-pixel state of the geometry passes, in slot order."""
+        """Textures holding the ordered per-pixel state of the steps (and of the passes without `phases`), in slot order."""
         return [name for name, _, _ in self.kind.slots]
 
     def slot_clears(self) -> list[str]:
