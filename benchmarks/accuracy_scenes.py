@@ -48,7 +48,6 @@ from guaca_py.benchmarking import (
     measure_point,
     open_device,
     plain_log_axis,
-    pyplot,
     ratio_at_full_clock,
     scene_paths,
     time_label,
@@ -63,7 +62,7 @@ from guaca_py.scene.loader import load_scene
 
 SMALLEST_TILE = 256  # a reference tile that overflows the pool is halved down to this side
 
-AA_METHOD = "presort_lf_et"  # the exact default, measured at every sample count
+AA_METHOD = aa_chart.AA_METHOD  # the exact default, measured at every sample count
 REFERENCE_METHOD = "presort_lf"  # exact without early termination
 
 
@@ -337,43 +336,35 @@ def main(argv: list[str] | None = None) -> int:
             )
             where.parent.mkdir(parents=True, exist_ok=True)
             where.write_text(json.dumps(rec, indent=1))
-            publish_folder(res.dir)  # after every scene: a run cut short keeps the scenes it finished
+            publish_folder(res)  # after every scene: a run cut short keeps the scenes it finished
         if pool is not None:
             pool.shutdown()
-    publish_folder(res.dir)
+    publish_folder(res)
     print(f"wrote {res.dir}" + ("/aa_chart.md" if args.aa_chart else ""), flush=True)
     return 0
 
 
-def publish_aa_chart(folder: Path) -> None:
-    """The anti-aliasing chart's table and figure from every scene's JSON in folder/aa_chart/ (earlier runs too)."""
-    recs = [json.loads(p.read_text()) for p in sorted((folder / "aa_chart").glob("*.json"))]
-    (folder / "aa_chart.md").write_text(aa_chart.markdown(recs, lambda rec: rec["command"]))
-    plt = pyplot()
-    if plt is not None and recs:
-        fig = aa_chart.chart(recs, plt)
-        fig.savefig(folder / "aa_chart.png", dpi=110)
-        plt.close(fig)
+def publish_aa_chart(res: Results) -> None:
+    """The anti-aliasing chart's table and figure from every scene's JSON in aa_chart/ (earlier runs too)."""
+    recs = [json.loads(p.read_text()) for p in sorted((res.dir / "aa_chart").glob("*.json"))]
+    res.write_markdown(aa_chart.markdown(recs), stem="aa_chart")
+    if recs:
+        res.write_chart(lambda plt: aa_chart.chart(recs, plt), stem="aa_chart")
 
 
-def publish(folder: Path) -> None:
+def publish(res: Results) -> None:
     """Each scene's page and chart from its JSON, and the folder's index (every scene in it, also those of
     earlier runs)."""
-    recs = [json.loads(p.read_text()) for p in sorted(folder.glob("*/accuracy.json"))]
+    recs = [json.loads(p.read_text()) for p in sorted(res.dir.glob("*/accuracy.json"))]
     index = ["# Speed against error on real scenes", ""]
-    plt = pyplot()
     for rec in recs:
-        d = folder / rec["scene"]
-        (d / "accuracy.md").write_text(markdown(rec))
-        if plt is not None:
-            fig = chart(rec, plt)
-            fig.savefig(d / "accuracy.png", dpi=110)
-            plt.close(fig)
+        res.write_markdown(markdown(rec), stem=f"{rec['scene']}/accuracy")
+        res.write_chart(lambda plt, rec=rec: chart(rec, plt), stem=f"{rec['scene']}/accuracy")
         index.append(
             f"- [{rec['scene']}]({rec['scene']}/accuracy.md) ({rec['size']}², reference {rec['reference']['k']}x, "
             f"{rec['device']}): `{rec['command']}`"
         )
-    (folder / "README.md").write_text("\n".join(index) + "\n")
+    res.write_markdown("\n".join(index), stem="README")
 
 
 if __name__ == "__main__":

@@ -9,12 +9,10 @@ table and the chart (error against frame time, one panel per scene).
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
-from ..antialiasing import with_settings
-from ..pipeline.config import PipelineConfig, pipeline_from_text
+from ..antialiasing import with_settings, with_supersample
+from ..pipeline.config import PipelineConfig
 from ..reference import linear_pipeline
 from .charts import plain_log_axis, time_label
 from .harness import timer_of, timer_sentence
@@ -25,16 +23,10 @@ SAMPLES = (2, 4, 8)
 SUPERSAMPLE = (2, 3)
 
 
-def fxaa_pipeline(threshold: float = 0.999) -> PipelineConfig:
+def fxaa_pipeline() -> PipelineConfig:
     """linear_pipeline's frame at 1 sample, then tone mapping that only clips and encodes sRGB, then FXAA (as a
     display image gets it); the row's linear colour is decoded from its sRGB 8-bit output."""
-    return pipeline_from_text(
-        "name: fxaa_aa1\n"
-        f"transparency: {{method: {AA_METHOD}, threshold: {threshold}, budget_mb: auto}}\n"
-        "passes: [geometry, {light_culling: {mode: auto}}, composite,\n"
-        "         {tone_mapping: {operator: clamp, exposure: 1.0, srgb: true}}, fxaa]\n",
-        "<fxaa pipeline, 1 sample>",
-    )
+    return linear_pipeline(1, post=("{tone_mapping: {operator: clamp, exposure: 1.0, srgb: true}}", "fxaa"))
 
 
 def configs(samples=SAMPLES, supersample=SUPERSAMPLE) -> list[tuple[dict, PipelineConfig]]:
@@ -46,18 +38,16 @@ def configs(samples=SAMPLES, supersample=SUPERSAMPLE) -> list[tuple[dict, Pipeli
     ]
     out += [({"label": f"{n} samples", "mode": "samples", "samples": n}, linear_pipeline(n)) for n in samples]
     out += [
-        ({"label": f"supersample {k}", "mode": "supersample", "samples": 1, "supersample": k}, ss(base, k))
+        (
+            {"label": f"supersample {k}", "mode": "supersample", "samples": 1, "supersample": k},
+            with_supersample(base, k, "aa_chart"),
+        )
         for k in supersample
     ]
     out.append(({"label": "auto", "mode": "auto", "samples": 1}, with_settings(base, "auto", "aa_chart")))
     for row, _ in out:
         row.update(method=AA_METHOD, exact=True, settings={})
     return out
-
-
-def ss(pipeline: PipelineConfig, k: int) -> PipelineConfig:
-    """`pipeline` supersampled k x."""
-    return with_settings(pipeline, {"supersample": k}, "aa_chart")
 
 
 def linear_of(frame) -> np.ndarray:
@@ -73,8 +63,8 @@ def chosen(stats: dict) -> str | None:
     return (stats.get("antialiasing", {}).get("auto") or {}).get("chose")
 
 
-def markdown(recs: list[dict], command: Callable[[dict], str]) -> str:
-    """One table of every scene's rows: time, edge error, FLIP, stored fragments; `command(rec)`: how each was made."""
+def markdown(recs: list[dict]) -> str:
+    """One table of every scene's rows: time, edge error, FLIP, stored fragments, and the command of each."""
     top = "# Anti-aliasing: edge error against frame time, per scene"
     out = [
         top,
@@ -103,7 +93,7 @@ def markdown(recs: list[dict], command: Callable[[dict], str]) -> str:
                 f"{r['rmse_255']:.2f} | "
                 f"{fl} | {stored} | {size} | {r.get('auto_chose') or ''} |"
             )
-    out += ["", "Commands:", ""] + [f"- {rec['scene']}: `{command(rec)}` ({rec['device']})" for rec in recs]
+    out += ["", "Commands:", ""] + [f"- {rec['scene']}: `{rec['command']}` ({rec['device']})" for rec in recs]
     return "\n".join(out) + "\n"
 
 

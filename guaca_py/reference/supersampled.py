@@ -92,14 +92,18 @@ def _block_mean_spread(image: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarra
     return acc / (k * k), (hi.astype(np.float64) - lo).max(axis=-1)
 
 
-def linear_pipeline(samples: int = 1, threshold: float = 0.999, light_culling: str = "auto") -> PipelineConfig:
-    """The accuracy benchmarks' pipeline: pipelines/exact with culled lights, linear output, `samples` per pixel."""
+def linear_pipeline(
+    samples: int = 1, threshold: float = 0.999, light_culling: str = "auto", post: tuple[str, ...] = ()
+) -> PipelineConfig:
+    """The accuracy benchmarks' pipeline: pipelines/exact with culled lights, linear output, `samples` per pixel;
+    `post`: passes after the composite, as YAML flow items (the frame is then theirs, not linear)."""
+    after = "".join(f", {p}" for p in post)
     return pipeline_from_text(
-        f"name: linear_aa{samples}\n"
+        f"name: linear_aa{samples}{'_post' if post else ''}\n"
         f"transparency: {{method: presort_lf_et, threshold: {threshold}, budget_mb: auto}}\n"
         f"antialiasing: {{samples: {samples}}}\n"
-        f"passes: [geometry, {{light_culling: {{mode: {light_culling}}}}}, composite]\n",
-        f"<linear pipeline, {samples} samples>",
+        f"passes: [geometry, {{light_culling: {{mode: {light_culling}}}}}, composite{after}]\n",
+        f"<linear pipeline, {samples} samples{', then ' + ', '.join(post) if post else ''}>",
     )
 
 
