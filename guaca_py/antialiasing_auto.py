@@ -33,7 +33,7 @@ from __future__ import annotations
 import math
 
 from .pipeline.device import Antialiasing
-from .raster.choice import mean_projected_area, normal_turn_per_px
+from .raster.choice import projected_shape
 
 # The constants come from the H100 at 1024² (presort_lf_et, raster: auto; benchmarks/results/h100/
 # aa_cost/ and accuracy_scenes/; docs/antialiasing.md): 4 samples against 1 stored 3.08x the fragments
@@ -79,7 +79,8 @@ def choose(
 ) -> tuple[str, str]:
     """('samples' or 'supersample', why) for a frame, from the previous frame's measurements.
 
-    `measured`: {'mean_triangle_area_px', 'fragments_1x', 'node_bytes'} or None before the first frame;
+    `measured`: measure()'s dict (mean triangle area, normal turn, 1-sample fragments, node bytes, transparent
+    draws) or None before the first frame;
     `previous`: the mode the previous frame ran; `coverage_possible`: None, or why 4 samples cannot run.
     """
     if coverage_possible is not None:
@@ -126,13 +127,14 @@ def measure(frame) -> dict:
     how fast their normals turn (radians per output pixel), both weighted by triangle count, and the stored
     fragments as at 1 sample (divided by the mode's growth)."""
     w, h = frame.output_size
+    k = frame.supersample  # measured at the rendered size, as raster: auto measures it (one cache entry)
     vp = frame.projection @ frame.view
     total = turns = weight = 0.0
     for d in frame.transparent_draws:
-        area = mean_projected_area(d.mesh, d.world, vp, w, h)
+        area, turn = projected_shape(d.mesh, d.world, vp, frame.width, frame.height)
         if area > 0:  # on screen
-            total += area * d.mesh.triangle_count
-            turns += normal_turn_per_px(d.mesh, d.world, vp, w, h) * d.mesh.triangle_count
+            total += area / (k * k) * d.mesh.triangle_count
+            turns += turn * k * d.mesh.triangle_count
             weight += d.mesh.triangle_count
     area = total / weight if weight else 0.0
     one = frame.stats.get("fragments", {}).get("stored", 0) / fragment_growth(frame.device.antialiasing, area)

@@ -33,7 +33,7 @@ RASTER_ORDER_SETTING = Setting(
 AUTO_MAX_MEAN_AREA_PX = 16384.0
 SAMPLE_TRIANGLES = 256  # triangles per mesh sampled for the estimate (fixed seed, cached)
 
-_areas: dict[tuple, float] = {}  # (estimate, mesh id, world, view-projection, size) -> value
+_shapes: dict[tuple, tuple[float, float]] = {}  # (mesh id, world, view-projection, size) -> projected_shape
 _samples: dict[int, tuple[weakref.ref, tuple]] = {}  # id(mesh) -> (weak mesh, sample): meshes may go
 
 
@@ -59,6 +59,12 @@ def auto_order(early_termination: bool, pixels: int) -> str:
     if early_termination and pixels <= LARGE_FRAME_PIXELS:
         return "depth"
     return "tile"
+
+
+def large_tile_frame(method, pixels: int) -> bool:
+    """Whether the compute rasterizer takes a frame of `pixels` in tile order with the large frames' buckets
+    (a screen tile's nodes then lie together in the pool: the composite reads them in strips)."""
+    return pixels > LARGE_FRAME_PIXELS and method.raster_order(pixels) == "tile"
 
 
 def order_rule() -> str:
@@ -108,46 +114,42 @@ def _on_screen(mesh, world: np.ndarray, view_projection: np.ndarray, width: int,
     return xy[rows], rows
 
 
-def _cached(key: tuple, compute) -> float:
-    """A per-(mesh, world, camera, size) estimate: the common case is an unchanged draw and camera."""
-    hit = _areas.get(key)
-    if hit is None:
-        if len(_areas) >= 256:  # bounded: a moving camera or node makes every key new
-            _areas.clear()
-        hit = _areas[key] = compute()
-    return hit
+def projected_shape(
+    mesh, world: np.ndarray, view_projection: np.ndarray, width: int, height: int
+) -> tuple[float, float]:
+    """(mean area in px², normal turn in radians per px) of the mesh's sampled triangles in front of the
+    near plane and on screen ((0, 0): none), from one projection of the sample, cached per draw and camera.
+
+    The turn is the median over those triangles of the largest angle between two corners' normals over
+    the length of their edge in pixels (0 for a mesh without normals): shading varies within a pixel
+    where it is large."""
+    key = (id(mesh), world.tobytes(), view_projection.tobytes(), width, height)
+    hit = _shapes.get(key)
+    if hit is not None:  # the common case: an unchanged draw and camera
+        return hit
+    xy, rows = _on_screen(mesh, world, view_projection, width, height)
+    area = turn = 0.0
+    if len(xy):
+        e1, e2 = xy[:, 1] - xy[:, 0], xy[:, 2] - xy[:, 0]
+        area = float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).mean()) * 0.5
+        _, normals = _sample(mesh)
+        if normals is not None:
+            n = normals.reshape(-1, 3, 3)[rows] @ np.linalg.inv(world[:3, :3])  # the normal matrix, on row vectors
+            n /= np.maximum(np.linalg.norm(n, axis=2, keepdims=True), 1e-30)
+            turns = []
+            for a, b in ((0, 1), (0, 2), (1, 2)):
+                angle = np.arccos(np.clip((n[:, a] * n[:, b]).sum(axis=1), -1.0, 1.0))
+                turns.append(angle / np.maximum(np.hypot(*(xy[:, b] - xy[:, a]).T), 1e-3))
+            turn = float(np.median(np.max(turns, axis=0)))
+    if len(_shapes) >= 256:  # bounded: a moving camera or node makes every key new
+        _shapes.clear()
+    _shapes[key] = (area, turn)
+    return area, turn
 
 
 def mean_projected_area(mesh, world: np.ndarray, view_projection: np.ndarray, width: int, height: int) -> float:
     """Mean screen area in px² of the sampled triangles in front of the near plane and on screen (0: none)."""
-
-    def compute() -> float:
-        xy, _ = _on_screen(mesh, world, view_projection, width, height)
-        e1, e2 = xy[:, 1] - xy[:, 0], xy[:, 2] - xy[:, 0]
-        return float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).mean()) * 0.5 if len(xy) else 0.0
-
-    return _cached(("area", id(mesh), world.tobytes(), view_projection.tobytes(), width, height), compute)
-
-
-def normal_turn_per_px(mesh, world: np.ndarray, view_projection: np.ndarray, width: int, height: int) -> float:
-    """Median over the sampled on-screen triangles of how fast the interpolated normal turns across the
-    screen: the largest angle between two corners' normals over the length of their edge, radians per
-    pixel (0: no normals or nothing on screen). Shading varies within a pixel where this is large."""
-
-    def compute() -> float:
-        xy, rows = _on_screen(mesh, world, view_projection, width, height)
-        _, normals = _sample(mesh)
-        if normals is None or not len(rows):
-            return 0.0
-        n = normals.reshape(-1, 3, 3)[rows] @ np.linalg.inv(world[:3, :3])  # the normal matrix, on row vectors
-        n /= np.maximum(np.linalg.norm(n, axis=2, keepdims=True), 1e-30)
-        turns = []
-        for a, b in ((0, 1), (0, 2), (1, 2)):
-            angle = np.arccos(np.clip((n[:, a] * n[:, b]).sum(axis=1), -1.0, 1.0))
-            turns.append(angle / np.maximum(np.hypot(*(xy[:, b] - xy[:, a]).T), 1e-3))
-        return float(np.median(np.max(turns, axis=0)))
-
-    return _cached(("turn", id(mesh), world.tobytes(), view_projection.tobytes(), width, height), compute)
+    return projected_shape(mesh, world, view_projection, width, height)[0]
 
 
 def compute_kernels_draw(raster: str | None, caps) -> bool:

@@ -38,7 +38,7 @@ from ..limits import require_bytes
 from ..pipeline.device import Device
 from ..shaders import set_uniform, set_uniforms
 from ..shaders.slots import Buffer, Texture
-from .choice import LARGE_FRAME_PIXELS
+from .choice import large_tile_frame
 from .material_program import apply_material, material_program
 from .material_support import compute_material
 
@@ -308,9 +308,7 @@ class ComputeRasterizer:
 
     def _buckets_of(self, frame) -> int:
         """Buckets of the frame's triangle order: LARGE_TILE_BUCKETS for tile order in large frames."""
-        pixels = frame.width * frame.height
-        large = pixels > LARGE_FRAME_PIXELS and frame.method.raster_order(pixels) == "tile"
-        return LARGE_TILE_BUCKETS if large else BUCKETS
+        return LARGE_TILE_BUCKETS if large_tile_frame(frame.method, frame.width * frame.height) else BUCKETS
 
     def _order_pass(self, draw, order_kernels, depth_range: tuple[float, float], buckets: int) -> None:
         """Bucket-sort the draw's triangles in the frustum by view depth, index or screen tile (order.comp.j2)."""

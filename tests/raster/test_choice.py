@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from guaca_py.raster.choice import mean_projected_area, normal_turn_per_px
+from guaca_py.raster.choice import mean_projected_area, projected_shape
 from guaca_py.scene.graph import MeshData
 
 
@@ -32,22 +32,22 @@ def test_normal_turn_is_the_fastest_edge_turn_per_pixel():
     mesh = one_triangle(np.array([[0, 0, 1], tilted(0.5), [0, 0, 1]]))
     eye = np.eye(4)
     assert mean_projected_area(mesh, eye, eye, 100, 100) == pytest.approx(50.0)
-    assert normal_turn_per_px(mesh, eye, eye, 100, 100) == pytest.approx(0.05, rel=1e-5)
+    assert projected_shape(mesh, eye, eye, 100, 100)[1] == pytest.approx(0.05, rel=1e-5)
     # twice the frame size: the same turn over twice the pixels
-    assert normal_turn_per_px(mesh, eye, eye, 200, 200) == pytest.approx(0.025, rel=1e-5)
+    assert projected_shape(mesh, eye, eye, 200, 200)[1] == pytest.approx(0.025, rel=1e-5)
     # a scaled world turns normals through the normal matrix: stretching x by 4 flattens the tilt
     # about y (the normal's x shrinks 4x) while the leg grows to 40 px
     world = np.diag([4.0, 1.0, 1.0, 1.0])
     expected = np.arctan2(np.sin(0.5) / 4, np.cos(0.5)) / 40.0
-    assert normal_turn_per_px(mesh, world, eye, 100, 100) == pytest.approx(expected, rel=1e-5)
+    assert projected_shape(mesh, world, eye, 100, 100)[1] == pytest.approx(expected, rel=1e-5)
 
 
 def test_flat_and_off_screen_triangles_turn_nothing():
     flat = one_triangle(np.tile([0.0, 0.0, 1.0], (3, 1)))
     eye = np.eye(4)
-    assert normal_turn_per_px(flat, eye, eye, 100, 100) == 0.0
+    assert projected_shape(flat, eye, eye, 100, 100)[1] == 0.0
     away = np.eye(4)
     away[:3, 3] = (5.0, 0.0, 0.0)  # beyond the right edge of the frame
     turned = one_triangle(np.array([[0, 0, 1], tilted(0.5), [0, 0, 1]]))
-    assert normal_turn_per_px(turned, away, eye, 100, 100) == 0.0
+    assert projected_shape(turned, away, eye, 100, 100)[1] == 0.0
     assert mean_projected_area(turned, away, eye, 100, 100) == 0.0
