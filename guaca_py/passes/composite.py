@@ -6,7 +6,7 @@ import numpy as np
 
 from ..pipeline.resources import HOST_MARK
 from ..pipeline.retry import settle
-from ..raster.choice import LARGE_FRAME_PIXELS
+from ..raster.choice import large_tile_frame
 from ..raster.compute_raster import ORDER_TILE_BITS
 from ..registry import register
 from ..shaders import set_uniform
@@ -24,14 +24,14 @@ def composite_edge(supersample: int) -> int:
 STRIP_TILES = 2
 
 
-def composite_strip(width: int, height: int, edge: int) -> int:
-    """Workgroups per launch strip of the composite over a rendered frame of `width` x `height`: in
-    frames the compute rasterizer takes in tile order (raster/choice.py), STRIP_TILES screen tiles
-    wide, so the workgroups in flight read a few tiles' nodes (a row of the frame crosses every tile,
-    and their nodes together outgrow the GPU's cache); 0 (row by row) in smaller frames."""
-    if width * height <= LARGE_FRAME_PIXELS:
+def composite_strip(frame, edge: int) -> int:
+    """Workgroups per launch strip of the composite: in frames the compute rasterizer takes in tile order
+    with the large frames' buckets (raster/choice.py large_tile_frame), STRIP_TILES screen tiles wide, so
+    the workgroups in flight read a few tiles' nodes (a row of the frame crosses every tile, and their
+    nodes together outgrow the GPU's cache); 0 (row by row) otherwise."""
+    if not large_tile_frame(frame.method, frame.width * frame.height):
         return 0
-    return max(1, -(-(STRIP_TILES * (width >> ORDER_TILE_BITS)) // edge))
+    return max(1, -(-(STRIP_TILES * (frame.width >> ORDER_TILE_BITS)) // edge))
 
 
 @register("pass")
@@ -107,6 +107,7 @@ class CompositePass(FullscreenPass):
         if self.epilogue is not None:
             self.epilogue.set_epilogue_uniforms(prog)
         g = frame.resources["gbuffer"]
+        edge = composite_edge(frame.supersample)
         tex = self.run_fullscreen(
             frame,
             prog,
@@ -117,8 +118,8 @@ class CompositePass(FullscreenPass):
                 "gbuf_depth": g.depth,
             },
             scale=frame.supersample,  # an invocation per rendered pixel
-            edge=composite_edge(frame.supersample),
-            strip=composite_strip(frame.width, frame.height, composite_edge(frame.supersample)),
+            edge=edge,
+            strip=composite_strip(frame, edge),
         )
         if store is not None:
             store.after_composite(frame)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from test_antialiasing import random_quads
@@ -9,18 +11,21 @@ from test_antialiasing import random_quads
 from guaca_py.antialiasing import with_supersample
 from guaca_py.passes import composite
 from guaca_py.pipeline.config import load_pipeline
-from guaca_py.raster.choice import LARGE_FRAME_PIXELS
-from guaca_py.raster.compute_raster import ORDER_TILE_BITS
 
 
-def test_strips_are_screen_tiles_wide_in_tile_order_frames_only():
-    side = int(LARGE_FRAME_PIXELS**0.5)
-    assert composite.composite_strip(side, side, 8) == 0  # depth order: row by row
-    big = 2 * side
-    tile = big >> ORDER_TILE_BITS
-    assert composite.composite_strip(big, big, 8) == composite.STRIP_TILES * tile // 8
-    wider = (big + 64) >> ORDER_TILE_BITS
-    assert composite.composite_strip(big + 64, big, 8) == -(-(composite.STRIP_TILES * wider) // 8)
+def frame_of(width: int, height: int, order: str) -> SimpleNamespace:
+    """What composite_strip reads of a frame: its rendered size and its method's triangle order."""
+    return SimpleNamespace(width=width, height=height, method=SimpleNamespace(raster_order=lambda pixels: order))
+
+
+def test_strips_are_two_screen_tiles_wide_in_large_tile_order_frames_only():
+    # 16 x 16 screen tiles (raster/compute_raster.py ORDER_TILE_BITS = 4): at 4096 px a tile is 256 px,
+    # two are 512 px, 64 workgroups of 8 (32 of 16); at 3000 px two tiles are 2 x 187 px: 47 groups of 8
+    assert composite.composite_strip(frame_of(4096, 4096, "tile"), 8) == 64
+    assert composite.composite_strip(frame_of(4096, 4096, "tile"), 16) == 32
+    assert composite.composite_strip(frame_of(3000, 3000, "tile"), 8) == 47
+    assert composite.composite_strip(frame_of(2048, 2048, "tile"), 8) == 0  # not a large frame
+    assert composite.composite_strip(frame_of(4096, 4096, "depth"), 8) == 0  # nodes not in tile order
 
 
 @pytest.mark.parametrize("supersample", [1, 2])
@@ -31,7 +36,7 @@ def test_launch_in_strips_composites_every_pixel_alike(renderer_factory, monkeyp
     pipeline = load_pipeline("exact") if supersample == 1 else with_supersample(load_pipeline("exact"), supersample)
     scene = random_quads(3)
     rows = renderer_factory(pipeline, method="presort_lf_et").render(scene, 80, 56).linear
-    monkeypatch.setattr(composite, "composite_strip", lambda w, h, edge: strip)
+    monkeypatch.setattr(composite, "composite_strip", lambda frame, edge: strip)
     # a renderer of its own: a pixel the strips missed would otherwise keep the last frame's value
     strips = renderer_factory(pipeline, method="presort_lf_et").render(scene, 80, 56).linear
     assert len(np.unique(rows.reshape(-1, 3), axis=0)) > 8  # quads over a background, not a flat frame
