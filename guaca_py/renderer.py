@@ -478,9 +478,10 @@ class Renderer:
         if stats and not read_back:
             self._previous_timers[index] = timers
         frame.stats.section("memory").update(self.method.memory() if frame.transparent_draws else {})
-        if self._aa_choice is not None:  # why this frame's mode, and what the next frame decides from
+        if self._aa_choice is not None:  # why this frame's mode, and what the next call decides from
             frame.stats["antialiasing"]["auto"] = self._aa_choice
-            self.aa_auto.record(frame)
+            if index == views - 1:  # one mode per call: its last view measures for the next call
+                self.aa_auto.record(frame)
         declared = self.method.geometry_passes
         frame.stats.setdefault("geometry_passes", declared if frame.transparent_draws and declared is not None else 1)
         if kind == "gpu" and any(p["ms"] >= 4294.9 for p in frame.stats["passes"].values()):
