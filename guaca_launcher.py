@@ -32,10 +32,15 @@ def main() -> int:
     if ours:
         _signal.signal(_signal.SIGINT, _signal.default_int_handler)  # from here run() catches KeyboardInterrupt
     try:
-        return run()
+        status = run()
     except KeyboardInterrupt:  # between the two lines above and run()'s own handler
         print("interrupted", file=sys.stderr)
-        return INTERRUPTED_STATUS
+        status = INTERRUPTED_STATUS
+    # The command is done (its files written, or removed): a Ctrl-C from here on would only cut the
+    # interpreter's shutdown short, where Python has put SIGINT back to the default and the process
+    # dies by the signal, silently, instead of leaving with this status.
+    _signal.signal(_signal.SIGINT, _signal.SIG_IGN)
+    return status
 
 
 if __name__ == "__main__":

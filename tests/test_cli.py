@@ -485,8 +485,7 @@ def test_ctrl_c_early_in_the_command_exits_130_with_one_line(textured, delay):
     import signal
     import time
 
-    # timed from the interpreter's start (it says so on stdout): on a loaded machine, a signal timed
-    # from the process's start could land before Python runs at all, where nothing of ours can act
+    # timed from the interpreter's start (it says so on stdout), not from the process's
     p = launched(*RUN, "--out", "o.png", cwd=textured, prelude="print('up', flush=True)")
     assert p.stdout.readline() == "up\n"
     time.sleep(delay)
