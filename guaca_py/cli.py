@@ -22,13 +22,13 @@ def _options_over_pipeline(args):
     method's when the method has that setting, else antialiasing's when it has it (`--set supersample=2`).
     """
     from . import antialiasing
-    from .methods import auto, method_class
     from .pipeline.config import load_pipeline
+    from .registry import settings_schema
     from .renderer import method_settings
 
     pipeline = load_pipeline(args.pipeline)
     mid = args.method or pipeline.transparency["method"]
-    schema = auto.settings_schema() if mid == auto.AUTO else method_class(mid).settings_schema()
+    schema = settings_schema(mid)
     overrides = {}
     for item in args.set or []:
         key, value = parse_set_option(item)

@@ -84,6 +84,11 @@ AUTO = "auto"
 AUTO_CANDIDATES: set[str] = set()
 
 
+def settings_schema(mid: str) -> dict:
+    """Settings `transparency.method: mid` accepts (`auto`: auto_settings_schema)."""
+    return auto_settings_schema() if mid == AUTO else METHODS.get(mid).settings_schema()
+
+
 def auto_settings_schema() -> dict:
     """Settings `method: auto` accepts: those of any method it may pick (the one picked takes its own)."""
     schema: dict = {}

@@ -33,6 +33,7 @@ from .pipeline.settings import resolve_settings
 from .pipeline.view_images import ViewImages
 from .present import Presenter, host_target
 from .raster.router import RasterRouter
+from .registry import settings_schema
 from .scene.files import as_scene
 from .scene.graph import Camera, Scene
 from .scene.views import check_cameras
@@ -51,7 +52,7 @@ def method_settings(
     A bad override is reported under `overrides_source` (the argument or command-line option it
     came from), not under the pipeline file, which may hold no such value.
     """
-    schema = auto.settings_schema() if mid == auto.AUTO else method_class(mid).settings_schema()
+    schema = settings_schema(mid)
 
     def error(where):
         return lambda k, r, h: ConfigError(r, where, None, f"transparency.{k}", h)

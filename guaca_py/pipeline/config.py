@@ -7,7 +7,7 @@ from pathlib import Path
 
 from .. import antialiasing
 from ..errors import ConfigError
-from ..registry import AUTO, METHODS, PASSES, auto_settings_schema, unknown_method
+from ..registry import AUTO, METHODS, PASSES, settings_schema, unknown_method
 from ..resources import builtin_pipeline
 from ..yaml_source import MAX_CONFIG_BYTES, Located, load_yaml_file, load_yaml_text
 from .settings import Setting, positive, resolve_settings
@@ -70,7 +70,7 @@ def parse_pipeline(doc: Located) -> PipelineConfig:
     mid = tr.pop("method", "presort_lf_et")
     if not isinstance(mid, str) or (mid != AUTO and mid not in METHODS):
         raise doc.error(("transparency", "method"), *unknown_method(mid))
-    schema = auto_settings_schema() if mid == AUTO else METHODS.get(mid).settings_schema()
+    schema = settings_schema(mid)
     settings = resolve_settings(schema, tr, lambda k, r, h: doc.error(("transparency", k), r, h))
     if mid == AUTO:  # the values given; the method picked on the device fills in its own defaults
         settings = {k: settings[k] for k in tr}
