@@ -12,7 +12,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..yaml_source import file_problem
-from .nodes import MeshData
+from .nodes import FLOAT32_MAX, MeshData
 from .texture import decode_image
 
 MESH_FORMATS_HINT = "supported formats: .obj, .ply, .stl, .glb, .gltf (anything trimesh reads)"
@@ -155,33 +155,35 @@ def _check_stl(p: Path, fail: Callable[[str, str], ConfigError]) -> None:
         )
 
 
-#: float32's largest value: vertices are uploaded as float32, a larger coordinate would become inf
-_FLOAT32_MAX = float(np.finfo(np.float32).max)
 #: trimesh merges duplicate vertices by hashing coordinates times 1e8 as int64: beyond this reach the
 #: product overflows and distinct vertices merge (a mesh of 300 vertices at 1e12 became 60), so such a
 #: mesh is kept with the vertices the file has
 MERGE_REACH = 1.0e9
 
 
-def check_finite(loaded, p: Path, fail: Callable[[str, str], ConfigError]) -> None:
-    """Refuse non-finite vertices (and ones beyond float32) before trimesh's processing drops them silently."""
+def check_finite(loaded, p: Path, fail: Callable[[str, str], ConfigError]) -> dict[int, float]:
+    """Refuse non-finite vertices (and ones beyond float32) before trimesh's processing drops them silently;
+    each geometry's largest coordinate magnitude, by id()."""
+    reach = {}
     geoms = loaded.geometry.values() if hasattr(loaded, "geometry") else [loaded]
     for geom in geoms:
         vertices = getattr(geom, "vertices", None)
         if vertices is None or not len(vertices):
             continue
         v = np.asarray(vertices, dtype=np.float64)
-        bad = int((~np.isfinite(v)).any(axis=1).sum()) if not np.isfinite(v).all() else 0
+        bad = int((~np.isfinite(v)).any(axis=1).sum())
         if bad:
             raise fail(
                 f"{p} has {bad} non-finite vertex position{'s' if bad != 1 else ''} (NaN or inf)",
                 "repair the mesh in a modelling tool",
             )
-        if float(np.abs(v).max()) > _FLOAT32_MAX:
+        reach[id(geom)] = largest = float(np.abs(v).max())
+        if largest > FLOAT32_MAX:
             raise fail(
-                f"{p} has vertex coordinates up to {float(np.abs(v).max()):.3g}, beyond float32's range",
+                f"{p} has vertex coordinates up to {largest:.3g}, beyond float32's range",
                 "scale the model down; coordinates are uploaded as float32",
             )
+    return reach
 
 
 def load_checked(p: Path, trimesh, fail: Callable[[str, str], ConfigError], **kwargs):
@@ -191,16 +193,16 @@ def load_checked(p: Path, trimesh, fail: Callable[[str, str], ConfigError], **kw
         loaded = trimesh.load(**trimesh_load_args(p, trimesh), process=False, **kwargs)
     except Exception as exc:  # trimesh raises many types for unreadable input; all mean "bad file"
         raise fail(f"cannot read mesh file {p}: {exc}", MESH_FORMATS_HINT) from exc
-    check_finite(loaded, p, fail)
+    reach = check_finite(loaded, p, fail)
     for geom in loaded.geometry.values() if hasattr(loaded, "geometry") else [loaded]:
         if hasattr(geom, "process") and hasattr(geom, "faces"):
             faces = np.asarray(geom.faces)
             if faces.size and (faces.min() < 0 or faces.max() >= len(geom.vertices)):
                 raise fail(f"{p} has face indices outside its vertex list", "repair the mesh in a modelling tool")
-            if faces.size and float(np.abs(np.asarray(geom.vertices)).max()) >= MERGE_REACH:
+            if faces.size and reach.get(id(geom), 0.0) >= MERGE_REACH:
                 continue  # trimesh's merge would overflow and join distinct vertices: kept as the file has them
             try:
-                with np.errstate(all="ignore"):  # what a hostile file provokes is reported below, not warned
+                with np.errstate(all="ignore"):  # what a hostile file provokes is refused as a bad file, not warned
                     geom.process()  # what trimesh.load(process=True) does: merge duplicate vertices
             except Exception as exc:  # as for trimesh.load: any failure means a bad file
                 raise fail(f"cannot read mesh file {p}: {exc}", MESH_FORMATS_HINT) from exc

@@ -118,7 +118,7 @@ def _freeze(v) -> tuple:
 
 
 #: largest magnitude a vertex attribute may hold: the GPU receives float32
-_FLOAT32_MAX = float(np.finfo(np.float32).max)
+FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 @dataclass
@@ -195,7 +195,7 @@ class MeshData:
                 raise fail(f"{field_name} must hold real numbers, got {a.dtype}")
             if not np.all(np.isfinite(a)):
                 raise fail(f"{field_name} must be finite (no NaN or inf)")
-            if a.size and a.dtype.itemsize > 4 and float(np.max(np.abs(a))) > _FLOAT32_MAX:
+            if a.size and a.dtype.itemsize > 4 and float(np.max(np.abs(a))) > FLOAT32_MAX:
                 raise fail(f"{field_name} hold values beyond float32's range (the GPU would read inf)")
 
     @property
