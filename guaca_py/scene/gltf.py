@@ -484,6 +484,12 @@ _DATA_PREFIX = "data:application/octet-stream;base64,"
 _FLOAT_ATTRIBUTES = ("POSITION", "NORMAL", "TEXCOORD_", "COLOR_")
 
 
+def _root_nodes(nodes: list) -> list[int]:
+    """The nodes no other node has as a child: a file without scenes shows these (trimesh and the camera alike)."""
+    children = {c for n in nodes for c in n.get("children", [])}
+    return [i for i in range(len(nodes)) if i not in children]
+
+
 def _rewritten(p: Path, doc: dict, binary: bytes | None, fail) -> dict | None:
     """A copy of `doc` in the form trimesh reads correctly, or None when `doc` is already in it.
 
@@ -515,9 +521,8 @@ def _rewritten(p: Path, doc: dict, binary: bytes | None, fail) -> dict | None:
     if not (dense or floats or strips or sceneless):
         return None
     out = copy.deepcopy(doc)
-    if sceneless:  # every node that is no other's child is a root, as for the file's camera (camera_node)
-        children = {c for n in nodes for c in n.get("children", [])}
-        out["scenes"], out["scene"] = [{"nodes": [i for i in range(len(nodes)) if i not in children]}], 0
+    if sceneless:
+        out["scenes"], out["scene"] = [{"nodes": _root_nodes(nodes)}], 0
     for key in ("buffers", "bufferViews", "accessors"):
         out.setdefault(key, [])
     for i in sorted(set(dense) | set(floats)):
@@ -653,9 +658,8 @@ def camera_node(doc: dict) -> tuple[dict, np.ndarray] | None:
     try:
         if scenes:
             roots = list(scenes[index].get("nodes", []))
-        else:  # no scene: every node that is no other's child is a root
-            children = {c for n in nodes for c in n.get("children", [])}
-            roots = [i for i in range(len(nodes)) if i not in children]
+        else:
+            roots = _root_nodes(nodes)
         stack = [(i, glm.dmat4(1.0)) for i in reversed(roots)]
         seen: set[int] = set()
         while stack:
