@@ -126,8 +126,8 @@ class TextureCache(_FrameCache):
         self._touch(key)
         if key in self._tex:
             return self._tex[key]
+        device = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
         if hasattr(name, "pixels"):
-            device = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
             if max(name.size) > device:  # the driver would make an incomplete texture without an error
                 raise LimitError(
                     f"is {name.size[0]}x{name.size[1]}; the device's largest texture is {device}x{device}",
@@ -140,7 +140,7 @@ class TextureCache(_FrameCache):
         elif name in _BUILTIN_TEXELS:
             tex = self.ctx.texture((1, 1), 4, bytes(_BUILTIN_TEXELS[name]))
         else:
-            from .scene.texture import MAX_TEXTURE_SIDE, decode_image
+            from .scene.texture import MAX_TEXTURE_SIDE, read_texture_file
 
             relative = not Path(name).is_absolute() and base is not None
             path = base / name if relative else Path(name)
@@ -150,12 +150,8 @@ class TextureCache(_FrameCache):
                 # to the material that declares the sampler, as its defaults are
                 where = f"relative names are looked for beside the material ({base})" if relative else "check the path"
                 raise ConfigError(f"texture {problem}", path, hint=where)
-            device = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
             limit = "the device's largest" if device <= MAX_TEXTURE_SIDE else "the largest read"
-            try:
-                pixels = decode_image(path, str(path), min(device, MAX_TEXTURE_SIDE), limit)
-            except ValueError as exc:
-                raise ConfigError(str(exc), path, hint="use a PNG or JPEG file; scale a larger image down") from None
+            pixels = read_texture_file(path, min(device, MAX_TEXTURE_SIDE), limit)
             img = np.ascontiguousarray(pixels[::-1])  # row 0 at the top -> GL's bottom-up rows
             tex = self.ctx.texture((img.shape[1], img.shape[0]), 4, img.tobytes())
             tex.build_mipmaps()

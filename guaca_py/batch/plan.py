@@ -19,9 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConfigError
 from ..scene.graph import Camera, Scene, Transform
-from ..scene.texture import TEXTURE_SUFFIXES, TextureImage, decode_image
+from ..scene.texture import TEXTURE_SUFFIXES, TextureImage, read_texture_file
 from .job import Job, Keyframe
 
 CAMERA_FIELDS = ("position", "target", "up", "fov_y", "near", "far")
@@ -75,11 +74,7 @@ def self_contained(scene: Scene) -> Scene:
         for name, value in list(mat.uniforms.items()):
             if isinstance(value, str) and value.lower().endswith(TEXTURE_SUFFIXES):
                 if value not in images:  # the same decode as TextureCache: RGBA, row 0 at the top, bounded
-                    try:
-                        pixels = decode_image(value, value)
-                    except ValueError as exc:
-                        raise ConfigError(str(exc), value, hint="use a PNG or JPEG file") from None
-                    images[value] = TextureImage(pixels, Path(value).name)
+                    images[value] = TextureImage(read_texture_file(value), Path(value).name)
                 mat.uniforms[name] = images[value]
     return scene
 

@@ -10,6 +10,7 @@ import zlib
 
 import numpy as np
 
+from ..errors import ConfigError
 from .nodes import ValueConfigError
 
 #: the largest texture side decoded; the header is read first, so a larger image costs no memory
@@ -111,3 +112,12 @@ def decode_image(source, name: str, limit: int = MAX_TEXTURE_SIDE, limit_name: s
         ) from None
     except (OSError, SyntaxError, EOFError, struct.error, zlib.error) as exc:
         raise ValueError(f"texture {name} is not a readable image ({exc or type(exc).__name__})") from None
+
+
+def read_texture_file(path, limit: int = MAX_TEXTURE_SIDE, limit_name: str = "the largest read") -> np.ndarray:
+    """decode_image of a texture file, a ConfigError naming the file where it is not a readable image."""
+    try:
+        return decode_image(path, str(path), limit, limit_name)
+    except ValueError as exc:
+        formats = ", ".join(s.lstrip(".").upper() for s in TEXTURE_SUFFIXES)
+        raise ConfigError(str(exc), path, hint=f"use an image file ({formats}); scale a larger image down") from None
