@@ -35,11 +35,7 @@ class Draw:
 
 
 def _mesh_reach(mesh) -> float:
-    """Largest absolute object-space coordinate, computed once per mesh content.
-
-    Every frame asks for it before anything reads the mesh, so a mesh whose arrays were replaced
-    is checked again here (MeshData.derived), before its arrays reach the GPU.
-    """
+    """Largest absolute object-space coordinate, computed once per mesh content (MeshData.derived)."""
     return mesh.derived("reach", _reach)
 
 
@@ -48,12 +44,9 @@ def _reach(mesh) -> float:
 
 
 def _drawn(node) -> bool:
-    """The node has a mesh with triangles (its arrays checked again when replaced): one without draws nothing."""
-    return node.mesh is not None and node.mesh.derived("triangles", _triangles) > 0
-
-
-def _triangles(mesh) -> int:
-    return mesh.triangle_count
+    """The node has a mesh with triangles: one without draws nothing. The first look at a mesh each frame, so
+    a mesh whose arrays were replaced is checked again here, before anything reads them (MeshData.checked)."""
+    return node.mesh is not None and node.mesh.checked().triangle_count > 0
 
 
 def check_world_extents(placed: list[tuple]) -> None:

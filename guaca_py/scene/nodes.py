@@ -150,15 +150,24 @@ class MeshData:
         (`check`, ConfigError naming the mesh) and every memoised value is dropped: each costs
         one pass over the arrays per change, never one per frame.
         """
+        values = self._held()[1]
+        if name not in values:
+            values[name] = compute(self)
+        return values[name]
+
+    def checked(self) -> MeshData:
+        """This mesh, its arrays checked again (ConfigError naming it) if any was replaced since the last look."""
+        self._held()
+        return self
+
+    def _held(self) -> tuple:
+        """(the arrays last checked, the values derived from them), renewed and checked when an array was replaced."""
         arrays = self._arrays()
         held = self.__dict__.get("_gua_derived")
         if held is None or any(a is not b for a, b in zip(arrays, held[0])):
             self.check()
             held = self.__dict__["_gua_derived"] = (arrays, {})
-        values = held[1]
-        if name not in values:
-            values[name] = compute(self)
-        return values[name]
+        return held
 
     def check(self) -> None:
         """Refuse arrays of the wrong shape, non-finite positions and indices outside the vertex list (ConfigError)."""
