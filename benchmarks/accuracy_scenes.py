@@ -18,8 +18,8 @@ times) while the sampled SM clock was below its maximum, and marked if it still 
 whose first frame exceeds --budget-s is timed on one frame; once a scene has run for --scene-budget-s
 its remaining configurations are skipped (the sample counts run first; the first always runs).
 Writes benchmarks/results/<device>/accuracy_scenes/<scene>/accuracy.{json,md,png} and its README.md.
-A reference tile whose fragments overflow the A-buffer pool is rendered again in tiles half as wide
-(down to 256 px), so one command serves scenes of every depth complexity.
+A reference tile whose fragments overflow the A-buffer pool is rendered again as four tiles (that tile
+alone, down to 256 px: reference/supersampled.py), so one command serves scenes of every depth complexity.
 
 --aa-chart: instead of the methods, the ways to anti-alias (guaca_py.benchmarking.aa_chart): presort_lf_et at 1
 sample with and without FXAA, at 2/4/8 coverage samples, supersampled 2x and 3x, and antialiasing: auto, each
@@ -60,8 +60,6 @@ from guaca_py.methods import method_class, method_ids
 from guaca_py.reference import edge_pixels, exact_reference, frame_errors, linear_pipeline
 from guaca_py.scene.loader import load_scene
 
-SMALLEST_TILE = 256  # a reference tile that overflows the pool is halved down to this side
-
 AA_METHOD = aa_chart.AA_METHOD  # the exact default, measured at every sample count
 REFERENCE_METHOD = "presort_lf"  # exact without early termination
 
@@ -98,18 +96,14 @@ def aa_configs(ctx, args):
 
 
 def reference(ctx, scene, args, progress: Progress, name: str):
-    """The scene's supersampled exact reference; a tile that overflowed the pool is rendered again, halved."""
-    tile = args.tile
-    while True:
-        t0 = time.perf_counter()
-        ref = exact_reference(ctx, scene, args.size, args.size, args.ref_k, tile, REFERENCE_METHOD)
-        progress.note(
-            f"{name}: reference {args.ref_k}x ({ref.tiles} tiles of at most {tile}²) {time.perf_counter() - t0:.1f} s"
-            + (f", OVERFLOW: {ref.overflow} fragments dropped" if ref.overflow else "")
-        )
-        if not ref.overflow or tile // 2 < SMALLEST_TILE:
-            return ref, tile
-        tile //= 2
+    """The scene's supersampled exact reference (a tile that overflowed the pool is rendered again as four)."""
+    t0 = time.perf_counter()
+    ref = exact_reference(ctx, scene, args.size, args.size, args.ref_k, args.tile, REFERENCE_METHOD)
+    progress.note(
+        f"{name}: reference {args.ref_k}x ({ref.tiles} tiles of at most {args.tile}²) {time.perf_counter() - t0:.1f} s"
+        + (f", OVERFLOW: {ref.overflow} fragments dropped" if ref.overflow else "")
+    )
+    return ref
 
 
 def run_scene(ctx, path: Path, args, pool, progress: Progress, make_configs=method_configs) -> dict:
@@ -117,7 +111,7 @@ def run_scene(ctx, path: Path, args, pool, progress: Progress, make_configs=meth
     t0 = time.perf_counter()
     scene = load_scene(path)
     size = args.size
-    ref, tile = reference(ctx, scene, args, progress, path.stem)
+    ref = reference(ctx, scene, args, progress, path.stem)
     edges = edge_pixels(ref)
     progress.note(f"{path.stem}: edge pixels {edges.mean():.1%}")
 
@@ -168,7 +162,7 @@ def run_scene(ctx, path: Path, args, pool, progress: Progress, make_configs=meth
             "method": REFERENCE_METHOD,
             "k": args.ref_k,
             "tiles": ref.tiles,
-            "tile_px": tile,
+            "tile_px": args.tile,
             "overflow": ref.overflow,
             "edge_tolerance": 0.05,
         },

@@ -424,3 +424,18 @@ def test_supersample_validated_and_held_to_the_device(gl_context, renderer_facto
         r.render(random_quads(0, n=1), wide, 8)
     assert err.value.key == "antialiasing.supersample"
     assert f"renders {4 * wide}x32" in str(err.value) and "use antialiasing.supersample 3" in str(err.value)
+
+
+def test_reference_tile_that_overflows_is_rendered_again_as_four(renderer_factory):
+    """A tile whose pool overflows is split (that tile alone) until the fragments fit: the reference is then
+    exact and equals the one rendered in small tiles from the start."""
+    scene = random_quads(3, n=6)
+    small_pool = renderer_factory(EXACT, method="presort_lf", method_overrides={"budget_mb": 0.15})
+    direct = supersampled(small_pool, scene, 40, 40, 4, tile_px=160, min_tile_px=160)
+    assert direct.overflow > 0 and direct.tiles == 1  # one 160² tile does not fit the pool
+    split = supersampled(small_pool, scene, 40, 40, 4, tile_px=160, min_tile_px=40)
+    assert split.overflow == 0 and split.tiles > 1
+    small = supersampled(small_pool, scene, 40, 40, 4, tile_px=40)
+    assert small.overflow == 0
+    diff = np.abs(split.image - small.image).max(axis=2)
+    assert np.mean(diff < 1e-3) > 0.995 and diff.mean() < 1e-3

@@ -47,9 +47,12 @@ class Supersampled:
 
 
 def supersampled(
-    renderer: Renderer, scene: Scene, width: int, height: int, k: int, tile_px: int = 2048
+    renderer: Renderer, scene: Scene, width: int, height: int, k: int, tile_px: int = 2048, min_tile_px: int = 256
 ) -> Supersampled:
-    """`renderer` (an exact method with linear output) at k x (width, height), box filtered to (width, height)."""
+    """`renderer` (an exact method with linear output) at k x (width, height), box filtered to (width, height).
+
+    Rendered in tiles of at most `tile_px` rendered pixels a side; a tile whose A-buffer overflowed (its pool
+    at the device's limit) is rendered again as four, down to `min_tile_px`, and only that tile."""
     big_w, big_h = width * k, height * k
     nx, ny = -(-big_w // tile_px), -(-big_h // tile_px)
     # tiles hold whole output pixels, so each box filter reads one tile
@@ -57,20 +60,28 @@ def supersampled(
     rows = np.linspace(0, height, ny + 1).round().astype(int)
     mean = np.zeros((height, width, 3))
     spread = np.zeros((height, width))
-    overflow = 0
-    for ty in range(ny):
-        for tx in range(nx):
-            c0, c1, r0, r1 = int(cols[tx]), int(cols[tx + 1]), int(rows[ty]), int(rows[ty + 1])
-            if c1 <= c0 or r1 <= r0:
-                continue
-            ndc = (2.0 * c0 / width - 1.0, 2.0 * c1 / width - 1.0, 1.0 - 2.0 * r1 / height, 1.0 - 2.0 * r0 / height)
-            cam = TileCamera(**dataclasses.asdict(scene.camera), full_aspect=width / height, ndc=ndc)
-            frame = renderer.render(dataclasses.replace(scene, camera=cam), (c1 - c0) * k, (r1 - r0) * k)
-            if frame.linear is None:
-                raise ValueError("the supersampled reference needs a pipeline with linear output (pipelines/exact)")
-            mean[r0:r1, c0:c1], spread[r0:r1, c0:c1] = _block_mean_spread(frame.linear, k)
-            overflow += int(frame.stats.get("fragments", {}).get("overflow", 0))
-    return Supersampled(mean, spread, k, nx * ny, overflow)
+    overflow = tiles = 0
+    todo = [
+        (int(cols[tx]), int(cols[tx + 1]), int(rows[ty]), int(rows[ty + 1])) for ty in range(ny) for tx in range(nx)
+    ]
+    while todo:
+        c0, c1, r0, r1 = todo.pop()
+        if c1 <= c0 or r1 <= r0:
+            continue
+        ndc = (2.0 * c0 / width - 1.0, 2.0 * c1 / width - 1.0, 1.0 - 2.0 * r1 / height, 1.0 - 2.0 * r0 / height)
+        cam = TileCamera(**dataclasses.asdict(scene.camera), full_aspect=width / height, ndc=ndc)
+        frame = renderer.render(dataclasses.replace(scene, camera=cam), (c1 - c0) * k, (r1 - r0) * k)
+        if frame.linear is None:
+            raise ValueError("the supersampled reference needs a pipeline with linear output (pipelines/exact)")
+        dropped = int(frame.stats.get("fragments", {}).get("overflow", 0))
+        if dropped and max(c1 - c0, r1 - r0) * k >= 2 * min_tile_px:  # split the tile that overflowed
+            cm, rm = (c0 + c1) // 2, (r0 + r1) // 2
+            todo += [(c0, cm, r0, rm), (cm, c1, r0, rm), (c0, cm, rm, r1), (cm, c1, rm, r1)]
+            continue
+        mean[r0:r1, c0:c1], spread[r0:r1, c0:c1] = _block_mean_spread(frame.linear, k)
+        overflow += dropped
+        tiles += 1
+    return Supersampled(mean, spread, k, tiles, overflow)
 
 
 def _block_mean_spread(image: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
