@@ -702,7 +702,6 @@ def test_tile_order_runs_screen_tiles_one_after_another(renderer_factory, monkey
     order_setting = "tile"
     if large:  # a "large" frame (raster/choice.py's bound lowered to this test's): auto takes tile order
         monkeypatch.setattr(choice, "LARGE_FRAME_PIXELS", 32 * 32)
-        monkeypatch.setattr(compute_raster, "LARGE_FRAME_PIXELS", 32 * 32)
         order_setting = "auto"
     r = renderer_factory("exact", method=method, method_overrides={"raster": "compute", "raster_order": order_setting})
     frame = r.render(scene, 64, 64)
