@@ -322,8 +322,6 @@ def test_overflow_regrows_and_reports(renderer_factory, monkeypatch):
     assert 0 < mem["raster_tile_jobs_used"] <= mem["raster_tile_jobs"] and mem["raster_vertices"] > 0
     assert compare(frame.image, ref, mask)["max_abs_255"] <= 2.0
     # with no re-render allowed the loss is counted and warned, and the image stays valid
-    from guaca_py.raster import compute_raster
-
     monkeypatch.setattr(compute_raster, "MAX_REGROW", 0)
     cr._want = {"large": 1, "jobs": 8}
     frame = r.render(scene, 64, 64)
