@@ -3,20 +3,21 @@
 Usage: python benchmarks/temporal_stability.py [--out DIR] [--scenes .scenes] [--scene-names NAME ...]
                                                [--size 1024] [--frames 60] [--degrees 3] [--ref-k 2] [--tile 2048]
                                                [--tolerance 1] [--repeat 4] [--methods ID ...] [--samples 4]
-                                               [--supersample 2] [--scene-budget-s S] [--replot]
+                                               [--supersample K ...] [--scene-budget-s S] [--replot]
 Path: --frames poses orbiting the scene camera's target about its up axis by --degrees in all
 (small steps: edges crawl by a fraction of a pixel per frame). Pixels that should not change
 between frames t and t+1: those whose supersampled exact reference (presort_lf at --ref-k x, in
 tiles of at most --tile px, box filtered) changes by less than --tolerance/255 in every channel.
 Per configuration (every method at 1 sample, skipped where the device refuses it; presort_lf_et at each --samples
-and supersampled at each --supersample factor; the first method runs first, then the sample counts and
-supersampling factors, then the others): the mean over frame pairs
+and supersampled at each --supersample factor, none by default; the first method runs first, then the sample
+counts and supersampling factors, then the others): the mean over frame pairs
 of the mean |difference| (1/255, linear output clipped to [0, 1]) on those pixels, the share of
 them that moved by more than --tolerance/255 (flicker), and whether rendering --repeat poses of
 the path again gives bit-identical images (races in overflow, ties, stochastic seeds). Pipeline:
-guaca_py.reference.linear_pipeline (threshold 0.999, culled lights, linear output). With the default
---ref-k 2 the reference renders what supersample 2 renders (presort_lf, 2x2 box filtered), so that row
-moves only where the reference moves: compare supersampling with --ref-k 4. Once a scene
+guaca_py.reference.linear_pipeline (threshold 0.999, culled lights, linear output). A supersample row
+at the reference's factor renders what the reference renders (presort_lf, box filtered the same) and
+would move only where the reference moves: each --supersample factor must be below --ref-k (default 2,
+so compare supersample 2 with --ref-k 4). Once a scene
 has run for --scene-budget-s (reference included), its remaining configurations are skipped
 (the first always runs). No times: accuracy does not depend on the timer.
 Writes benchmarks/results/<device>/temporal_stability/<scene>/stability.{json,md} and its README.md.
@@ -232,11 +233,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeat", type=int, default=4, help="poses rendered again for the bit-identity check")
     ap.add_argument("--methods", nargs="*", help="methods at 1 sample (default: every method the device runs)")
     ap.add_argument("--samples", nargs="*", type=int, default=[4], help=f"extra sample counts of {AA_METHOD}")
-    ap.add_argument("--supersample", nargs="*", type=int, default=[2], help=f"supersampling factors of {AA_METHOD}")
+    ap.add_argument(
+        "--supersample", nargs="*", type=int, default=[], help=f"supersampling factors of {AA_METHOD}, below --ref-k"
+    )
     ap.add_argument(
         "--scene-budget-s", type=float, default=0.0, help="per scene (reference included): later configurations skipped"
     )
     args = ap.parse_args(argv)
+    finest = max(args.supersample, default=1)
+    if finest > 1 and finest >= args.ref_k:  # the reference would be that row itself, or coarser
+        ap.error(f"--supersample {finest} needs --ref-k above {finest} (the reference is {args.ref_k}x{args.ref_k})")
     if args.replot:
         res = Results.existing(args, argv)
     else:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from guaca_py.reference import origin_camera, quad_mesh, unlit
 from guaca_py.scene.graph import Camera, MaterialInstance, MeshData, Node, Scene, Transform
 
 
@@ -117,3 +118,19 @@ def simple_scene(nodes, background=(0.1, 0.1, 0.1)) -> Scene:
         background=background,
         nodes=list(nodes),
     )
+
+
+def random_quads(seed: int, n: int = 10) -> Scene:
+    """Randomly placed, rotated (so interpenetrating) transparent quads and one opaque quad."""
+    rng = np.random.default_rng(seed)
+    nodes = [
+        Node(
+            f"q{i}",
+            Transform(tuple(rng.uniform(-1, 1, 3) * [1.2, 1.2, 1.0]), tuple(rng.uniform(-60, 60, 3))),
+            quad_mesh(*rng.uniform(0.5, 1.3, 2)),
+            unlit(tuple(rng.uniform(0.1, 1, 3)), float(rng.uniform(0.3, 0.8))),
+        )
+        for i in range(n)
+    ]
+    nodes.append(Node("opaque", Transform((0.3, -0.2, -1.5), (10, 20, 5)), quad_mesh(0.9, 0.7), unlit((0.9, 0.9, 0.8))))
+    return Scene(camera=origin_camera(), background=(0.05, 0.08, 0.12), nodes=nodes)

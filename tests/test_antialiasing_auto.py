@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_antialiasing import random_quads
+from conftest import random_quads
 
 from guaca_py.antialiasing import with_samples, with_settings, with_supersample
 from guaca_py.antialiasing_auto import (

@@ -6,7 +6,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from test_antialiasing import random_quads
+from conftest import random_quads
 
 from guaca_py.antialiasing import with_supersample
 from guaca_py.passes import composite
