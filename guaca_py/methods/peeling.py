@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import moderngl
 
@@ -56,7 +56,6 @@ EMPTY_NEAR = "uvec4(GUA_INF, 0u, 0u, 0u)"  # slot clears (GLSL) of step.comp.j2'
 EMPTY_NEAR_TIE = "uvec4(0u, 0u, 0u, GUA_TIE_MAX)"
 ZERO = "uvec4(0u)"
 EMPTY_NEXT = "GUA_DUAL_EMPTY_NEXT"  # dual: nearest key +inf, farthest -1
-ORDERED_PHASES = ("nearest", "stencil")  # ordered phases that read and write `slots` (others: PeelKind.phases)
 _FETCH_EXT = "#extension GL_EXT_shader_framebuffer_fetch : require\n"
 _INTERLOCK_EXT = "#extension GL_ARB_fragment_shader_interlock : require\n"
 
@@ -95,21 +94,41 @@ def ordering_backend(setting: str, caps) -> str | None:
 
 
 @dataclass(frozen=True)
+class Phase:
+    """A geometry phase (`peel_phase` of peeling/fragment.glsl.j2): the state its passes order, whether they shade."""
+
+    # textures its passes read and write in primitive order (fetch or interlock): "slots" for the
+    # method's slots (what its steps read next), else the textures named; none: not an ordered phase
+    ordered: tuple[str, ...] | Literal["slots"] = ()
+    shades: bool = False  # shades fragments where they are drawn: needs the lighting variables and the lights
+
+
+# every geometry phase of the peeling methods
+PHASES = {
+    "nearest": Phase("slots"),  # depth and hybrid peeling: the nearest remaining fragment's payload
+    "stencil": Phase("slots"),  # coherent's counting passes: emulated depth and stencil, a payload
+    "multilayer": Phase(),  # atomics on the node pool, in any order
+    "composite_range": Phase(shades=True),  # blended under the front accumulation by the hardware
+    # dual: the bounds, the keys between them and both accumulations (the first pass: the second keys too)
+    "dual_first": Phase(("bounds", "next", "acc_front", "acc_back", "second"), shades=True),
+    "dual": Phase(("bounds", "next", "acc_front", "acc_back"), shades=True),
+}
+
+
+@dataclass(frozen=True)
 class PeelKind:
     """What one peeling method chooses: its ordered per-pixel state, its steps and its loop."""
 
     step_method: str  # `method` variable of peeling/step.comp.j2
     render: Callable[[Peeling, Any], None]  # geometry passes and steps until done: render(method, frame)
-    # ordered per-pixel state the steps read and write (gua_slotN of step.comp.j2), in slot order:
-    # (texture name, components of uint32, value the init step clears it to in GLSL); the geometry
-    # passes use these too unless `phases` names theirs (dual)
+    # per-pixel state the steps read and write (gua_slotN of step.comp.j2), in slot order: (texture
+    # name, components of uint32, value the init step clears it to in GLSL); the geometry phases
+    # whose `ordered` is "slots" read and write it in primitive order too
     slots: tuple[tuple[str, int, str], ...] = ()
     has_back: bool = False  # a back accumulation (dual)
     has_range: bool = False  # a per-pixel compositing range texture (hybrid, coherent)
     needs_ordering: bool = True  # geometry passes read-modify-write per-pixel state in primitive order
-    # geometry phases whose ordered state is not `slots`: (phase, textures read and written in order)
-    phases: tuple[tuple[str, tuple[str, ...]], ...] = ()
-    shading_phases: tuple[str, ...] = ()  # geometry phases that shade fragments in place (need the lights)
+    steps_shade: bool = True  # its steps shade layers (dual: its passes shade, its steps only move keys)
     # dual: the init step starts each pixel's upper bound at its opaque depth (the first pass tests only it)
     upper_opaque: bool = False
     # storage of its own beside the textures (multi-layer peeling's node pool): made as storage(method)
@@ -173,7 +192,7 @@ class Peeling(TransparencyMethod):
         return specs
 
     def slot_names(self) -> list[str]:
-        """Textures holding the ordered per-pixel state of the steps (and of the passes without `phases`), in slot order."""
+        """Textures holding the per-pixel state of the steps, in slot order."""
         return [name for name, _, _ in self.kind.slots]
 
     def slot_clears(self) -> list[str]:
@@ -236,19 +255,22 @@ class Peeling(TransparencyMethod):
     def step(self, frame, name: str) -> None:
         """Run one compute step of peeling/step.comp.j2 over every pixel."""
         slots = self.slot_names()
+        shades = self.kind.steps_shade
         prog = frame.programs.compute(
             "peeling/step.comp.j2",
             method=self.step_method,
             step=name,
+            shades=shades,
             has_back=self.has_back,
             has_range=self.has_range,
             slot_formats=[self._image_format(n) for n in slots],
             slot_clear=self.slot_clears(),
             **self.step_vars(),
-            **self._shading,
+            **(self._shading if shades else {}),
         )
         frame.set_frame_uniforms(prog)
-        frame.bind_lights(prog)
+        if shades:
+            frame.bind_lights(prog)
         set_uniform(prog, "gua_threshold", self.composite_threshold())
         if set_uniform(prog, "gua_peel_opaque", Texture.PEEL_OPAQUE):
             frame.resources["gbuffer"].depth.use(location=Texture.PEEL_OPAQUE)
@@ -298,12 +320,11 @@ class Peeling(TransparencyMethod):
             "gua_peel_range": Texture.PEEL_RANGE,
         }
 
-    def geometry_pass(
-        self, frame, phase: str, slots: list[str], draws=None, uniforms: dict | None = None, per_program=None
-    ) -> None:
-        """One pass over the transparent draws (or `draws`) that updates the slots in primitive order."""
+    def geometry_pass(self, frame, phase: str, draws=None, uniforms: dict | None = None) -> None:
+        """One pass over the transparent draws (or `draws`) that updates the phase's ordered state in primitive order."""
         mgl = moderngl
         ctx = frame.ctx
+        slots = self.phase_slots(phase)
         if self.order == "fetch" and slots:
             self._fbo(frame, phase, slots).use()
         else:
@@ -317,16 +338,7 @@ class Peeling(TransparencyMethod):
         # (ONE, ZERO) writes the same colour and keeps every draw.
         ctx.enable(mgl.BLEND)
         ctx.blend_func = (mgl.ONE, mgl.ZERO)
-        self._phase = phase
-        try:
-            all_uniforms = {**self._common_uniforms(frame), **(uniforms or {})}
-            frame.draw_transparent(all_uniforms, per_program=per_program, order=draws)
-        finally:
-            self._phase = "composite"
-            ctx.disable(mgl.BLEND)
-            ctx.blend_func = mgl.DEFAULT_BLENDING
-        ctx.memory_barrier()
-        self.passes += 1
+        self._draw(frame, phase, draws, uniforms)
 
     def composite_range_pass(self, frame, draws=None) -> None:
         """Shade the fragments inside each pixel's range in place and blend them under the front accumulation."""
@@ -337,9 +349,17 @@ class Peeling(TransparencyMethod):
         ctx.enable(mgl.BLEND)
         ctx.blend_equation = mgl.FUNC_ADD
         ctx.blend_func = (mgl.ONE_MINUS_DST_ALPHA, mgl.ONE)  # front-to-back "under", premultiplied
-        self._phase = "composite_range"
+        self._draw(frame, "composite_range", draws)
+
+    def _draw(self, frame, phase: str, draws, uniforms: dict | None = None) -> None:
+        """Draw the transparent draws (or `draws`) as `phase` with the blending set up, then count the pass."""
+        mgl = moderngl
+        ctx = frame.ctx
+        self._phase = phase  # before the uniforms: they depend on the phase's ordered state
         try:
-            frame.draw_transparent(self._common_uniforms(frame), per_program=frame.bind_lights, order=draws)
+            lights = frame.bind_lights if PHASES[phase].shades else None
+            all_uniforms = {**self._common_uniforms(frame), **(uniforms or {})}
+            frame.draw_transparent(all_uniforms, per_program=lights, order=draws)
         finally:
             self._phase = "composite"
             ctx.disable(mgl.BLEND)
@@ -391,27 +411,22 @@ class Peeling(TransparencyMethod):
         """Phase of the pass being drawn (part of the program key); geometry phases add their layout."""
         if self._phase == "composite":
             return {"peel_phase": "composite", "peel_back": self.has_back}
+        ordered = self.phase_slots(self._phase)
         v = {
             "peel_phase": self._phase,
             "peel_order": self.order or "none",
-            "ord_formats": [self._image_format(n) for n in self.phase_slots(self._phase)],
-            "fragment_interlock": self.order == "interlock" and self.ordered_phase(self._phase),
+            "ord_formats": [self._image_format(n) for n in ordered],
+            "fragment_interlock": self.order == "interlock" and bool(ordered),
         }
-        if self._phase == "composite_range" or self._phase in self.kind.shading_phases:
+        if PHASES[self._phase].shades:
             v.update(self._shading)
         v.update(self.step_vars())
         return v
 
     def phase_slots(self, phase: str) -> list[str]:
-        """Slot textures a geometry phase reads and writes in order."""
-        for name, textures in self.kind.phases:
-            if name == phase:
-                return list(textures)
-        return self.slot_names() if phase in ORDERED_PHASES else []
-
-    def ordered_phase(self, phase: str) -> bool:
-        """Does the phase read and write per-pixel state in primitive order?"""
-        return phase in ORDERED_PHASES or any(name == phase for name, _ in self.kind.phases)
+        """Textures a geometry phase reads and writes in primitive order (none: not an ordered phase)."""
+        ordered = PHASES[phase].ordered
+        return self.slot_names() if ordered == "slots" else list(ordered)
 
     def extensions(self) -> str:
         """Framebuffer fetch or interlock, whichever orders the passes here."""
@@ -468,14 +483,13 @@ def peel_layers(m: Peeling, frame) -> None:
     The cap reports what is left.
     """
     s = m.stats
-    slots = m.phase_slots("nearest")
     left = 0
     while True:
         if m.cap_reached():
             m.truncate(left)
             break
         m.reset_counters()
-        m.geometry_pass(frame, "nearest", slots)
+        m.geometry_pass(frame, "nearest")
         m.step(frame, "nearest")
         c = m.read_counters()
         s["iterations"] += 1
@@ -513,7 +527,7 @@ def peel_dual(m: Peeling, frame) -> None:
     while True:
         last = m.cap_reached(needed=2)  # the cap allows this pass and no other
         m.reset_counters()
-        m.geometry_pass(frame, phase, m.phase_slots(phase), per_program=frame.bind_lights)
+        m.geometry_pass(frame, phase)
         m.step(frame, "dual_last" if last else "dual")
         c = m.read_counters()
         s["iterations"] += 1
@@ -541,12 +555,8 @@ register("method")(
             # pass's second nearest and second farthest; how many fragments are left
             (("next", 4, EMPTY_NEXT), ("second", 4, EMPTY_NEXT), ("left", 1, ZERO)),
             has_back=True,
+            steps_shade=False,
             upper_opaque=True,
-            phases=(
-                ("dual_first", ("bounds", "next", "acc_front", "acc_back", "second")),
-                ("dual", ("bounds", "next", "acc_front", "acc_back")),
-            ),
-            shading_phases=("dual_first", "dual"),
         ),
         PEEL_SETTINGS,
         geometry_passes=None,

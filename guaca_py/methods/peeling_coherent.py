@@ -125,7 +125,7 @@ def peel_hybrid(m: Peeling, frame) -> None:
             break
         m.reset_counters()
         if peel:
-            m.geometry_pass(frame, "nearest", m.slot_names(), draws=unsorted)
+            m.geometry_pass(frame, "nearest", draws=unsorted)
         m.step(frame, "hybrid_range")
         if sorted_draws:
             m.composite_range_pass(frame, draws=sorted_draws)
@@ -147,7 +147,6 @@ def _counting_pass(m: Peeling, frame, n: int) -> None:
     m.geometry_pass(
         frame,
         "stencil",
-        m.slot_names(),
         uniforms={
             "gua_cl_pass": n,
             "gua_cl_depth_func": depth,

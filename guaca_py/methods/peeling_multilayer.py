@@ -150,7 +150,6 @@ def peel_multilayer(m: Peeling, frame) -> None:
         m.geometry_pass(
             frame,
             "multilayer",
-            [],
             uniforms={
                 "gua_ml_capacity": pool.capacity,
                 "gua_ml_max_steps": int(m.settings["max_steps"]),
