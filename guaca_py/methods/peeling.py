@@ -111,6 +111,8 @@ PHASES = {
     "composite_range": Phase(shades=True),  # blended under the front accumulation by the hardware
     # dual: the bounds, the keys between them and both accumulations (the first pass: the second keys too)
     "dual_first": Phase(("bounds", "next", "acc_front", "acc_back", "second"), shades=True),
+    # (later passes only read the bounds, but as a target they cost llvmpipe half what a sampled texture
+    # does: docs/decisions.md, 2026-11-28 "dual depth peeling's bounds")
     "dual": Phase(("bounds", "next", "acc_front", "acc_back"), shades=True),
 }
 
@@ -416,6 +418,7 @@ class Peeling(TransparencyMethod):
             "peel_phase": self._phase,
             "peel_order": self.order or "none",
             "ord_formats": [self._image_format(n) for n in ordered],
+            "ord_names": ordered,  # GUA_ORD_<NAME>: each texture's slot in peeling/ordered.glsl.j2
             "fragment_interlock": self.order == "interlock" and bool(ordered),
         }
         if PHASES[self._phase].shades:
