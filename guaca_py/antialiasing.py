@@ -50,12 +50,16 @@ SUGGESTION = "presort_lf_et (or another one-pass A-buffer method: presort_lf, pr
 )
 
 
+def _spelled_out(given: object) -> object:
+    """`given` with `auto` written as the mapping it is short for and None as no settings; anything else as given."""
+    if given is None:
+        return {}
+    return {"auto": True} if given == AUTO else given
+
+
 def parse(given, error) -> dict:
     """Validated `antialiasing:` settings; `error(key, reason, hint)` builds the exception."""
-    if given is None:
-        given = {}
-    if given == AUTO:
-        given = {"auto": True}
+    given = _spelled_out(given)
     if not isinstance(given, dict):
         raise error(None, "must be a mapping like {samples: 4}, or auto", None)
     out = resolve_settings(SETTINGS, given, error)
@@ -154,7 +158,7 @@ def with_settings(config, given: dict | str, source: str):
     def error(key, reason, hint):
         return ConfigError(reason, source, None, "antialiasing" + (f".{key}" if key else ""), hint)
 
-    given = parse(given, error) if given == AUTO else given
+    given = _spelled_out(given)
     parse(given, error)  # a bad value is reported under `source`, not under the pipeline file
     base = dict(config.antialiasing)
     if given.get("auto"):

@@ -23,7 +23,8 @@ of the costs around the line.
 
 Otherwise supersample 2 is chosen where its estimate is lower (by HYSTERESIS when the previous frame
 ran the other mode, so a camera near the crossing does not switch every frame). Either way it needs
-the 1-sample fragments, four times over, to fit the device's storage rule; 4 samples otherwise, and
+the 1-sample fragments, four times over, to fit the method's node pool at four times the pixels (the
+pool's own sizing by the device's storage rule, ABuffer.max_fragments); 4 samples otherwise, and
 always for a method that cannot carry coverage masks (supersample 2 then) or a frame without
 transparent draws.
 """
@@ -31,6 +32,7 @@ transparent draws.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 from .pipeline.device import Antialiasing
 from .raster.choice import projected_shape
@@ -55,7 +57,6 @@ NORMAL_TURN_MAX = 0.6
 HYSTERESIS = 0.1  # leave the previous frame's mode only for an estimate this much lower
 SUPERSAMPLE = 2
 COVERAGE_SAMPLES = 4
-NODE_BYTES = 40  # an A-buffer node (payload and 64-bit link), for the storage check where the frame names none
 
 
 def coverage_cost(area_px: float) -> float:
@@ -75,13 +76,17 @@ def label(aa: Antialiasing) -> str:
 
 
 def choose(
-    measured: dict | None, previous: str | None, coverage_possible: str | None, max_buffer_bytes: int | None
+    measured: dict | None,
+    previous: str | None,
+    coverage_possible: str | None,
+    max_fragments: Callable[[int], int] | None,
 ) -> tuple[str, str]:
     """('samples' or 'supersample', why) for a frame, from the previous frame's measurements.
 
-    `measured`: measure()'s dict (mean triangle area, normal turn, 1-sample fragments, node bytes, transparent
+    `measured`: measure()'s dict (mean triangle area, normal turn, 1-sample fragments, output pixels, transparent
     draws) or None before the first frame;
-    `previous`: the mode the previous frame ran; `coverage_possible`: None, or why 4 samples cannot run.
+    `previous`: the mode the previous frame ran; `coverage_possible`: None, or why 4 samples cannot run;
+    `max_fragments`: the method's pool rule, rendered pixels -> the most fragments it stores (ABuffer.max_fragments).
     """
     if coverage_possible is not None:
         return "supersample", coverage_possible
@@ -93,12 +98,15 @@ def choose(
     cov, ss = coverage_cost(area), supersample_cost(area)
     costs = f"mean triangle area {area:.3g} px²: estimated cost x{cov:.2f} with 4 samples, x{ss:.2f} with supersample 2"
     turn = measured.get("normal_turn_per_px", 0.0)
-    need = SUPERSAMPLE**2 * measured["fragments_1x"] * measured.get("node_bytes", NODE_BYTES)
-    if max_buffer_bytes is not None and need > max_buffer_bytes:
-        return (
-            "samples",
-            f"{costs}; supersample 2 would store {need / 2**20:.0f} MiB of fragments, over the device's buffer",
-        )
+    if max_fragments is not None:
+        need = SUPERSAMPLE**2 * measured["fragments_1x"]
+        room = max_fragments(SUPERSAMPLE**2 * measured["output_pixels"])
+        if need > room:
+            return (
+                "samples",
+                f"{costs}; supersample 2 would store {need:,} fragments, over the {room:,} its pool holds "
+                "within the device's buffers",
+            )
     # with the same hysteresis as the costs: a camera near the line does not switch every frame
     line = NORMAL_TURN_MAX * {"samples": 1.0 + HYSTERESIS, "supersample": 1.0 - HYSTERESIS}.get(previous, 1.0)
     if turn > line:
@@ -138,17 +146,14 @@ def measure(frame) -> dict:
             weight += d.mesh.triangle_count
     area = total / weight if weight else 0.0
     one = frame.stats.get("fragments", {}).get("stored", 0) / fragment_growth(frame.device.antialiasing, area)
-    out = {
+    return {
         "transparent_draws": len(frame.transparent_draws),
         "mean_triangle_area_px": round(area, 4),
         "normal_turn_per_px": round(turns / weight if weight else 0.0, 4),
         "fragments_1x": int(one),
         "fragments_per_pixel_1x": round(one / (w * h), 3),
+        "output_pixels": w * h,
     }
-    node = frame.stats.get("memory", {}).get("abuffer_node_bytes")
-    if node:
-        out["node_bytes"] = int(node)
-    return out
 
 
 class AutoAntialiasing:
@@ -171,9 +176,9 @@ class AutoAntialiasing:
             else f"method '{method_cls.id}' carries no coverage masks ({method_cls.antialiasing_refusal})"
         )
 
-    def choose(self, max_buffer_bytes: int | None) -> tuple[Antialiasing, dict]:
+    def choose(self, max_fragments: Callable[[int], int] | None) -> tuple[Antialiasing, dict]:
         """The mode of the next frame and its report for `stats['antialiasing']['auto']`."""
-        mode, why = choose(self.measured, self.mode, self.why_not_coverage, max_buffer_bytes)
+        mode, why = choose(self.measured, self.mode, self.why_not_coverage, max_fragments)
         self.mode = mode
         aa = self.coverage if mode == "samples" else self.supersampled
         report = {"chose": label(aa), "why": why}

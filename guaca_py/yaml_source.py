@@ -311,15 +311,18 @@ def bulk_allocation() -> Iterator[None]:
 def compose(text: str, file: str, max_depth: int = MAX_YAML_DEPTH) -> yaml.Node | None:
     """yaml.compose with bounded work: nesting past `max_depth`, alias cycles and alias bombs are ConfigErrors.
 
-    Syntax errors stay yaml.MarkedYAMLError (the callers word them); the node graph keeps the
-    line marks every error cites. Aliased nodes are shared, as yaml.compose shares them.
+    Syntax errors are ConfigErrors too, worded by `syntax_error`; the node graph keeps the line
+    marks every later error cites. Aliased nodes are shared, as yaml.compose shares them.
     """
-    composer = _Composer(text, file, max_depth)
     try:
-        with bulk_allocation():
-            return composer.document()
-    finally:
-        composer.loader.dispose()
+        composer = _Composer(text, file, max_depth)  # the pure-Python reader checks characters here already
+        try:
+            with bulk_allocation():
+                return composer.document()
+        finally:
+            composer.loader.dispose()
+    except yaml.YAMLError as exc:
+        raise syntax_error(exc, text, file) from None
 
 
 _CONSTRUCT = yaml.constructor.SafeConstructor()
@@ -361,35 +364,33 @@ def _convert(node: yaml.Node, path: tuple, lines: dict, file: str, done: dict) -
     return out
 
 
-def reader_error(exc: yaml.reader.ReaderError, text: str, file: str) -> ConfigError:
-    """A character YAML does not allow (a control character, a NUL), at its line: one line, not PyYAML's three."""
-    char = exc.character
-    code = ord(char) if isinstance(char, str) else int(char)
-    return ConfigError(
-        f"invalid YAML: character #x{code:04x} is not allowed ({exc.reason})",
-        file,
-        text.count("\n", 0, max(exc.position, 0)) + 1,
-        hint="remove it; YAML text holds no control characters but tab, line feed and carriage return",
-    )
-
-
-def _composed(text: str, file: str, max_depth: int) -> yaml.Node | None:
-    """`compose`, with syntax errors as a ConfigError of one line at the problem's line."""
-    try:
-        return compose(text, file, max_depth)
-    except yaml.reader.ReaderError as exc:
-        raise reader_error(exc, text, file) from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = mark.line + 1 if mark is not None else None
-        said = "; ".join(s for s in (getattr(exc, "context", None), getattr(exc, "problem", None)) if s)
-        said = " ".join((said or str(exc)).split())  # PyYAML's own text spans lines
-        raise ConfigError(f"invalid YAML: {said}", file, line, hint="check indentation and brackets") from None
+def syntax_error(exc: yaml.YAMLError, text: str, file: str) -> ConfigError:
+    """A YAML syntax error as a one-line ConfigError: the file, the problem's line and column, what to check."""
+    hint = "check indentation, colons, quotes and brackets around this line"
+    if isinstance(exc, yaml.reader.ReaderError):  # a character YAML does not allow: no mark, a position
+        char = exc.character
+        code = ord(char) if isinstance(char, str) else int(char)
+        said = f"character #x{code:04x} is not allowed ({exc.reason})"
+        at = max(exc.position, 0)
+        line, column = text.count("\n", 0, at) + 1, at - (text.rfind("\n", 0, at) + 1) + 1
+        hint = "remove it; YAML text holds no control characters but tab, line feed and carriage return"
+    elif isinstance(exc, yaml.MarkedYAMLError):
+        mark = exc.problem_mark or exc.context_mark
+        context = exc.context
+        if context and exc.context_mark and mark and exc.context_mark.line != mark.line:
+            context += f" (started on line {exc.context_mark.line + 1})"  # where the unclosed thing began
+        said = "; ".join(s for s in (context, exc.problem) if s) or str(exc)
+        line, column = (mark.line + 1, mark.column + 1) if mark else (None, None)
+    else:
+        said, line, column = str(exc), None, None
+    said = " ".join(said.split())  # PyYAML's own text spans lines
+    where = "" if column is None else f" at column {column}"
+    return ConfigError(f"invalid YAML{where}: {said}", file, line, hint=hint)
 
 
 def load_yaml_text(text: str, file: str, max_depth: int = MAX_NESTING) -> Located:
     """Parse YAML text; syntax errors become ConfigError with the line of the problem."""
-    root = _composed(text, file, max_depth)
+    root = compose(text, file, max_depth)
     lines: dict[tuple, int] = {}
     data = _convert(root, (), lines, file, {}) if root is not None else {}
     return Located(data, lines, file)
@@ -397,7 +398,7 @@ def load_yaml_text(text: str, file: str, max_depth: int = MAX_NESTING) -> Locate
 
 def yaml_value(text: str, file: str, max_depth: int = MAX_NESTING):
     """The plain value of a short YAML text (None when it holds none), read as files are: bounded, YAML 1.2 booleans."""
-    root = _composed(text, file, max_depth)
+    root = compose(text, file, max_depth)
     return None if root is None else _convert(root, (), {}, file, {})
 
 

@@ -32,8 +32,25 @@ def crossing() -> float:
     return lo
 
 
-def measured(area: float, fragments: int = 1000) -> dict:
-    return {"transparent_draws": 3, "mean_triangle_area_px": area, "fragments_1x": fragments, "node_bytes": 40}
+def measured(area: float, fragments: int = 1000, pixels: int = 1024 * 1024) -> dict:
+    return {"transparent_draws": 3, "mean_triangle_area_px": area, "fragments_1x": fragments, "output_pixels": pixels}
+
+
+GIB = 1 << 30
+
+
+@pytest.fixture(scope="module")
+def pool(gl_context):
+    """A presort_lf_et method on this device with its buffers capped at 1 GiB (its pool's own sizing rule)."""
+    import dataclasses
+
+    from guaca_py.context import detect_capabilities
+    from guaca_py.methods import method_class
+    from guaca_py.renderer import method_settings
+
+    caps = detect_capabilities(gl_context)
+    caps = dataclasses.replace(caps, limits=dataclasses.replace(caps.limits, max_buffer_bytes=GIB))
+    return method_class("presort_lf_et")(method_settings("presort_lf_et", {}), caps)
 
 
 def test_auto_switches_where_the_estimates_cross():
@@ -53,13 +70,23 @@ def test_auto_switches_where_the_estimates_cross():
     assert choose(measured(near_above), "samples", None, None)[0] == "samples"
 
 
-def test_auto_keeps_samples_where_supersampling_would_not_fit_or_has_nothing_to_do():
-    """Four times the 1-sample fragments must fit the device's buffer; a frame without transparency takes 4 samples;
-    a method without coverage masks always supersamples."""
+def test_auto_keeps_samples_where_supersampling_would_not_fit_or_has_nothing_to_do(pool):
+    """Four times the 1-sample fragments must fit the method's pool at four times the pixels (the pool's own rule:
+    payloads in one buffer, heads and links in another); a frame without transparency takes 4 samples; a method
+    without coverage masks always supersamples."""
     tiny = crossing() / 4
-    mode, why = choose(measured(tiny, fragments=10_000_000), "samples", None, 1 << 30)
-    assert mode == "samples" and "over the device's buffer" in why
-    assert choose(measured(tiny, fragments=1_000_000), "samples", None, 1 << 30)[0] == "supersample"
+    # 1 GiB of 32-byte payloads: 2**25 nodes, node 0 the null link; at 1 Mpx the links' buffer holds more
+    room = GIB // 32 - 1
+    top = room // 4
+    assert top * 4 * 40 > GIB  # a 40-bytes-a-node estimate against one buffer refused this; it fits
+    assert choose(measured(tiny, top), "samples", None, pool.max_fragments)[0] == "supersample"
+    mode, why = choose(measured(tiny, top + 1), "samples", None, pool.max_fragments)
+    assert mode == "samples" and f"would store {4 * (top + 1):,} fragments, over the {room:,}" in why
+    # a frame so large that the heads leave the links' buffer room for 2**24 nodes: that buffer binds
+    pixels = (GIB // pool.link_bytes - (1 << 24)) // 4
+    top = ((1 << 24) - 1) // 4
+    assert choose(measured(tiny, top, pixels), "samples", None, pool.max_fragments)[0] == "supersample"
+    assert choose(measured(tiny, top + 1, pixels), "samples", None, pool.max_fragments)[0] == "samples"
     assert choose({**measured(tiny), "transparent_draws": 0}, "samples", None, None)[0] == "samples"
     assert choose(measured(1000.0), "samples", "method 'dfb' carries no coverage masks", None) == (
         "supersample",
@@ -158,7 +185,8 @@ def test_auto_supersamples_where_normals_turn_within_a_pixel():
     assert choose(near_below, "supersample", None, None)[0] == "supersample"
     assert choose(near_below, "samples", None, None)[0] == "samples"
     too_many = {**measured(large, fragments=10_000_000), "normal_turn_per_px": NORMAL_TURN_MAX * 1.5}
-    assert choose(too_many, "samples", None, 1 << 30)[0] == "samples"
+    assert choose(too_many, "samples", None, lambda pixels: 4 * 10_000_000 - 1)[0] == "samples"
+    assert choose(too_many, "samples", None, lambda pixels: 4 * 10_000_000)[0] == "supersample"
 
 
 def test_auto_measures_the_normal_turn_of_the_frame(renderer_factory):

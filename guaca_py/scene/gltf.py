@@ -237,7 +237,7 @@ def _check_materials(doc: dict, fail) -> None:
                 raise fail(f"materials[{i}].{key} must be {size} {span}, got {value!r}", "export the file again")
 
 
-def _check_document(p: Path, doc: dict, binary: bytes | None, fail) -> None:
+def _check_document(p: Path, doc: dict, buffers: _Buffers, fail) -> None:
     """Refuse what the glTF spec says a loader must refuse or what would render wrong, naming the object path."""
     required = doc.get("extensionsRequired", [])
     if not isinstance(required, list):
@@ -251,7 +251,7 @@ def _check_document(p: Path, doc: dict, binary: bytes | None, fail) -> None:
     for i, buf in enumerate(_items(doc, "buffers", fail)):
         if "uri" in buf:
             _check_uri(buf["uri"], p.parent, f"buffers[{i}].uri", fail)
-    _check_accessors(p, doc, binary, fail)
+    _check_accessors(doc, buffers, fail)
     nodes = _items(doc, "nodes", fail)
     _check_nodes(doc, nodes, fail)
     meshes = _items(doc, "meshes", fail)
@@ -270,7 +270,7 @@ def _check_document(p: Path, doc: dict, binary: bytes | None, fail) -> None:
         if "mesh" in node and _flattened(node):
             warn_scene(f"{p.name}: nodes[{i}] is scaled to zero on an axis; its mesh draws nothing")
     _check_materials(doc, fail)
-    _check_images(p, doc, binary, fail)
+    _check_images(p, doc, buffers, fail)
 
 
 _COMPONENT_BYTES = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}
@@ -282,15 +282,15 @@ def _natural(value) -> bool:
     return isinstance(value, int) and not isinstance(value, bool) and value >= 0
 
 
-def _check_accessors(p: Path, doc: dict, binary: bytes | None, fail) -> None:
+def _check_accessors(doc: dict, buffers: _Buffers, fail) -> None:
     """Buffers hold their byteLength, buffer views lie in their buffers, accessors in their views (spec 3.6)."""
-    buffers, views = _items(doc, "buffers", fail), _items(doc, "bufferViews", fail)
+    listed, views = _items(doc, "buffers", fail), _items(doc, "bufferViews", fail)
     sizes = []
-    for i, buf in enumerate(buffers):
+    for i, buf in enumerate(listed):
         if not _natural(buf.get("byteLength")):
             raise fail(f"buffers[{i}].byteLength must be a non-negative integer", "export the file again")
         try:
-            held = len(_buffer_bytes(p, doc, binary, i))
+            held = len(buffers.get(doc, i))
         except (OSError, ValueError, IndexError) as exc:
             raise fail(f"buffers[{i}] cannot be read: {exc}", "export the file again") from None
         if held < buf["byteLength"]:
@@ -300,7 +300,7 @@ def _check_accessors(p: Path, doc: dict, binary: bytes | None, fail) -> None:
             )
         sizes.append(buf["byteLength"])
     for i, view in enumerate(views):
-        b = _index(view.get("buffer"), len(buffers), f"bufferViews[{i}].buffer", fail)
+        b = _index(view.get("buffer"), len(listed), f"bufferViews[{i}].buffer", fail)
         start, length = view.get("byteOffset", 0), view.get("byteLength")
         if not (_natural(start) and _natural(length)) or start + length > sizes[b]:
             raise fail(
@@ -378,23 +378,39 @@ _DTYPES = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126
 _INDEX_TYPES = (5121, 5123, 5125)  # unsigned byte, short, int: what indices may be
 
 
-def _buffer_bytes(p: Path, doc: dict, binary: bytes | None, i: int) -> bytes:
-    """The bytes of buffers[i]: the GLB binary chunk, a data: URI, or a local file (already checked)."""
-    from urllib.parse import unquote
+@dataclass
+class _Buffers:
+    """One load's buffers, each read (a file) or decoded (a data: URI) once however many accessors use it."""
 
-    buf = doc["buffers"][i]
-    uri = buf.get("uri")
-    if uri is None:
-        return binary or b""
-    if uri.startswith("data:"):
-        return base64.b64decode(uri.split(",", 1)[1])
-    return (p.parent / unquote(uri)).read_bytes()
+    base: Path  # the folder external URIs are relative to
+    binary: bytes | None  # the GLB binary chunk
+    _held: dict[str | None, bytes] = field(default_factory=dict)
+
+    def get(self, doc: dict, i: int) -> bytes:
+        """The bytes of doc's buffers[i]: the GLB binary chunk, a data: URI, or a local file (already checked).
+
+        Held by URI, so the rewritten copy of a document (`_rewritten`) shares what the original read.
+        """
+        uri = doc["buffers"][i].get("uri")
+        if uri not in self._held:
+            self._held[uri] = self._read(uri)
+        return self._held[uri]
+
+    def _read(self, uri: str | None) -> bytes:
+        """The bytes `uri` names, read from its source (no buffer held)."""
+        from urllib.parse import unquote
+
+        if uri is None:
+            return self.binary or b""
+        if uri.startswith("data:"):
+            return base64.b64decode(uri.split(",", 1)[1])
+        return (self.base / unquote(uri)).read_bytes()
 
 
-def _view_rows(p: Path, doc: dict, binary: bytes | None, view: int, offset: int, count: int, row: int, stride=None):
+def _view_rows(doc: dict, buffers: _Buffers, view: int, offset: int, count: int, row: int, stride=None):
     """`count` rows of `row` bytes from bufferViews[view] at `offset`, `stride` apart (tightly packed when None)."""
     bv = doc["bufferViews"][view]
-    data = _buffer_bytes(p, doc, binary, bv.get("buffer", 0))
+    data = buffers.get(doc, bv.get("buffer", 0))
     stride = stride or row
     start = bv.get("byteOffset", 0) + offset
     if count == 0:
@@ -403,7 +419,7 @@ def _view_rows(p: Path, doc: dict, binary: bytes | None, view: int, offset: int,
     return np.lib.stride_tricks.as_strided(flat, (count, row), (stride, 1)).copy()
 
 
-def _accessor_array(p: Path, doc: dict, binary: bytes | None, i: int, fail) -> np.ndarray:
+def _accessor_array(doc: dict, buffers: _Buffers, i: int, fail) -> np.ndarray:
     """accessors[i] (checked already) as a (count, components) array of its type, sparse substitutions applied.
 
     A sparse accessor without a bufferView starts from zeros (spec 3.6.2.3); a substituted
@@ -414,9 +430,8 @@ def _accessor_array(p: Path, doc: dict, binary: bytes | None, i: int, fail) -> n
     if "bufferView" in acc:
         view = doc["bufferViews"][acc["bufferView"]]
         rows = _view_rows(
-            p,
             doc,
-            binary,
+            buffers,
             acc["bufferView"],
             acc.get("byteOffset", 0),
             count,
@@ -430,14 +445,14 @@ def _accessor_array(p: Path, doc: dict, binary: bytes | None, i: int, fail) -> n
     if sparse:
         m, at, values = sparse["count"], sparse["indices"], sparse["values"]
         index_type = np.dtype(_DTYPES[at["componentType"]])
-        idx = _view_rows(p, doc, binary, at["bufferView"], at.get("byteOffset", 0), m, index_type.itemsize)
+        idx = _view_rows(doc, buffers, at["bufferView"], at.get("byteOffset", 0), m, index_type.itemsize)
         idx = idx.view(index_type).reshape(m).astype(np.int64)
         if int(idx.max()) >= count:
             raise fail(
                 f"accessors[{i}].sparse.indices holds {int(idx.max())}, not below the accessor's count {count}",
                 "export the file again",
             )
-        vals = _view_rows(p, doc, binary, values["bufferView"], values.get("byteOffset", 0), m, n * dtype.itemsize)
+        vals = _view_rows(doc, buffers, values["bufferView"], values.get("byteOffset", 0), m, n * dtype.itemsize)
         out[idx] = vals.view(dtype).reshape(m, n)
     return out
 
@@ -450,11 +465,11 @@ def _as_float(acc: dict, data: np.ndarray) -> np.ndarray:
     return np.maximum(data.astype(np.float64) / top, -1.0).astype(np.float32)
 
 
-def _strip_and_fan_indices(p: Path, doc: dict, binary: bytes | None, prim: dict, mode: int, fail) -> np.ndarray:
+def _strip_and_fan_indices(doc: dict, buffers: _Buffers, prim: dict, mode: int, fail) -> np.ndarray:
     """The triangle-list indices of a TRIANGLE_STRIP (5) or TRIANGLE_FAN (6) primitive (spec 3.7.2.1)."""
     accessors = doc["accessors"]
     if "indices" in prim:
-        idx = _accessor_array(p, doc, binary, prim["indices"], fail).reshape(-1).astype(np.int64)
+        idx = _accessor_array(doc, buffers, prim["indices"], fail).reshape(-1).astype(np.int64)
     else:
         idx = np.arange(accessors[prim["attributes"]["POSITION"]]["count"], dtype=np.int64)
     n = len(idx) - 2
@@ -490,7 +505,7 @@ def _root_nodes(nodes: list) -> list[int]:
     return [i for i in range(len(nodes)) if i not in children]
 
 
-def _rewritten(p: Path, doc: dict, binary: bytes | None, fail) -> dict | None:
+def _rewritten(doc: dict, buffers: _Buffers, fail) -> dict | None:
     """A copy of `doc` in the form trimesh reads correctly, or None when `doc` is already in it.
 
     Sparse accessors become dense, integer vertex attributes floats (normalized ones scaled),
@@ -527,7 +542,7 @@ def _rewritten(p: Path, doc: dict, binary: bytes | None, fail) -> dict | None:
         out.setdefault(key, [])
     for i in sorted(set(dense) | set(floats)):
         acc = accessors[i]
-        data = _accessor_array(p, doc, binary, i, fail)
+        data = _accessor_array(doc, buffers, i, fail)
         fields = {k: v for k, v in acc.items() if k not in ("sparse", "bufferView", "byteOffset")}
         if i in floats:
             data = _as_float(acc, data)
@@ -537,7 +552,7 @@ def _rewritten(p: Path, doc: dict, binary: bytes | None, fail) -> dict | None:
     for m, k in strips:
         prim = out["meshes"][m]["primitives"][k]
         try:
-            tris = _strip_and_fan_indices(p, out, binary, prim, prim["mode"], fail)
+            tris = _strip_and_fan_indices(out, buffers, prim, prim["mode"], fail)
         except (KeyError, IndexError, TypeError, ValueError, OSError) as exc:
             raise fail(
                 f"meshes[{m}].primitives[{k}]: cannot read its indices ({exc})", "export the file again"
@@ -549,13 +564,14 @@ def _rewritten(p: Path, doc: dict, binary: bytes | None, fail) -> dict | None:
     return out
 
 
-def _load_trimesh(p: Path, doc: dict, binary: bytes | None, fail):
+def _load_trimesh(p: Path, doc: dict, buffers: _Buffers, fail):
     """trimesh's scene of the file; what it would misread is handed to it rewritten (`_rewritten`)."""
     import io
 
     import trimesh
 
-    rewritten = _rewritten(p, doc, binary, fail)
+    rewritten = _rewritten(doc, buffers, fail)
+    binary = buffers.binary
     if rewritten is None:
         # the container by its magic bytes, not its name (a binary glTF named .gltf, JSON named .glb)
         with p.open("rb") as f:
@@ -580,7 +596,7 @@ def _load_trimesh(p: Path, doc: dict, binary: bytes | None, fail):
     return trimesh.load(source, file_type=kind, force="scene", process=False, resolver=resolver)
 
 
-def _check_images(p: Path, doc: dict, binary: bytes | None, fail) -> None:
+def _check_images(p: Path, doc: dict, buffers: _Buffers, fail) -> None:
     """Every image decodes to a bounded size (header read first); a bad one is a located error, not dropped."""
     views = _items(doc, "bufferViews", fail)
     # only images a texture samples as its core `source`: one named only by an extension (a KTX2
@@ -602,7 +618,7 @@ def _check_images(p: Path, doc: dict, binary: bytes | None, fail) -> None:
             view = views[v]
             b = _index(view.get("buffer", 0), len(doc.get("buffers", [])), f"bufferViews[{v}].buffer", fail)
             try:
-                data = _buffer_bytes(p, doc, binary, b)
+                data = buffers.get(doc, b)
             except (OSError, ValueError, IndexError) as exc:
                 raise fail(f"buffers[{b}] (of {where}) cannot be read: {exc}", "export the file again") from None
             start, length = view.get("byteOffset", 0), view.get("byteLength", 0)
@@ -722,12 +738,13 @@ def load_gltf(
         doc, binary = _parse_document(p.read_bytes())
     except (OSError, ValueError, struct.error, RecursionError) as exc:
         raise fail(f"cannot read glTF file {p}: {exc}", MESH_FORMATS_HINT) from None
+    buffers = _Buffers(p.parent, binary)  # this load's alone: a file changed between loads is read again
     try:
-        _check_document(p, doc, binary, fail)
+        _check_document(p, doc, buffers, fail)
     except (TypeError, ValueError, KeyError, IndexError, AttributeError) as exc:  # a wrong type in a field
         raise fail(f"cannot read glTF file {p}: a field has the wrong type ({exc})", "export the file again") from None
     try:
-        tscene = _load_trimesh(p, doc, binary, fail)
+        tscene = _load_trimesh(p, doc, buffers, fail)
     except ConfigError:
         raise
     except Exception as exc:  # trimesh raises many types for unreadable input; all mean "bad file"

@@ -79,7 +79,7 @@ import yaml
 
 from ..errors import ArgumentError, ConfigError
 from ..numeric import Range, number_hint
-from ..yaml_source import compose, file_problem, nesting_error, read_text, reader_error, resolved
+from ..yaml_source import compose, file_problem, nesting_error, read_text, resolved
 from .graph import LIGHT_TYPES, MAX_WORLD, Camera, Light, MaterialInstance, MeshData, Node, Scene, Transform
 from .mesh_io import load_mesh_file
 from .nodes import MAX_CONE_DEG, _scaled_unit
@@ -494,24 +494,7 @@ class _Reader:
 
 def load_scene_text(text: str, source_name: str = "<string>", base_dir: str | Path | None = None) -> Scene:
     """Parse scene YAML; source_name is cited in errors, relative paths resolve against base_dir."""
-    try:
-        root = compose(text, source_name)
-    except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark or exc.context_mark
-        context = exc.context
-        if context and exc.context_mark and mark and exc.context_mark.line != mark.line:
-            context += f" (started on line {exc.context_mark.line + 1})"  # where the unclosed thing began
-        reason = "invalid YAML: " + "; ".join(s for s in (context, exc.problem) if s)
-        raise ConfigError(
-            reason,
-            source_name,
-            mark.line + 1 if mark else None,
-            hint="check indentation, colons, quotes and brackets around this line",
-        ) from None
-    except yaml.reader.ReaderError as exc:
-        raise reader_error(exc, text, source_name) from None
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"invalid YAML: {' '.join(str(exc).split())}", source_name) from None
+    root = compose(text, source_name)  # a syntax error is a ConfigError at its line and column
     base = Path(base_dir) if base_dir is not None else Path.cwd()
     return _Reader(source_name, base.resolve()).scene(root)
 

@@ -248,6 +248,31 @@ def test_sparse_accessor_in_a_glb_and_as_indices(tmp_path):
     assert loaded_positions(path) == [QUAD[k] for k in (0, 1, 2, 0, 3, 2)]
 
 
+def test_each_buffer_file_is_read_once_per_load(tmp_path, monkeypatch):
+    """A strip over a sparse accessor, both buffers in files: checking, densifying and triangulating
+    read each file once (trimesh's own read of the file it is handed is not counted: it uses open())."""
+    import pathlib
+
+    doc = sparse_doc({2: [2, 3, 0]})
+    doc["meshes"][0]["primitives"][0]["mode"] = 5
+    for i, buf in enumerate(doc["buffers"]):
+        (tmp_path / f"b{i}.bin").write_bytes(base64.b64decode(buf["uri"].split(",", 1)[1]))
+        buf["uri"] = f"b{i}.bin"
+    reads: dict[str, int] = {}
+    read_bytes = pathlib.Path.read_bytes
+
+    def counted(self):
+        reads[self.name] = reads.get(self.name, 0) + 1
+        return read_bytes(self)
+
+    monkeypatch.setattr(pathlib.Path, "read_bytes", counted)
+    path = write(tmp_path, doc)
+    load_gltf(path)
+    assert reads == {"m.gltf": 1, "b0.bin": 1, "b1.bin": 1}
+    load_gltf(path)  # a second load reads again: nothing is kept between loads
+    assert reads == {"m.gltf": 2, "b0.bin": 2, "b1.bin": 2}
+
+
 @pytest.mark.parametrize(
     "change, fragment",
     [
