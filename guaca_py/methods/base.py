@@ -119,8 +119,8 @@ class TransparencyMethod:
             return order
         # Orders (raster/order.comp.j2): "depth" (front to back with early termination, back to
         # front without), "mesh" (index order), "tile" (screen tiles, by depth within each).
-        # On the H100 (docs/decisions.md, 2026-11-23 "the triangle order"), depth order let early
-        # termination cull most: presort_cs_et hairball_v2 25.2 ms against 48.8 in tile order.
+        # On the H100 (docs/decisions.md, 2026-11-23 "the compute rasterizer's triangle order"), depth
+        # order let early termination cull most: presort_cs_et hairball_v2 25.2 ms against 48.8 in tile order.
         # Without it, tile order keeps each pixel's nodes and its neighbours' in one short run of
         # the pool, where insertion walks and the composite read them: hairball_v2 presort_lf 161 ->
         # 28.4 ms, post_sort 330 (mesh order) -> 29.3, post_merge16 787 -> 93; the dragons lose

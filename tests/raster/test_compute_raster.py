@@ -653,8 +653,8 @@ def test_auto_takes_compute_for_every_size_where_the_method_asks(renderer_factor
     ],
 )
 def test_auto_raster_order_is_depth_with_early_termination_else_tile(renderer_factory, method, expected):
-    # the measured rule (docs/decisions.md, 2026-11-23 "the triangle order"): early termination culls
-    # most in depth order, the others walk and composite fastest over tile-ordered pools
+    # the measured rule (docs/decisions.md, 2026-11-23 "the compute rasterizer's triangle order"): early
+    # termination culls most in depth order, the others walk and composite fastest over tile-ordered pools
     r = renderer_factory("exact", method=method)
     assert r.method.raster_order(1024 * 1024) == expected
     # past 2048² tile order's locality outweighs early termination's culling (raster/choice.py)
