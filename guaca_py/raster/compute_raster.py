@@ -93,6 +93,8 @@ BUCKETS = 16384  # buckets of the triangle order (a multiple of SCAN_LANES: orde
 LARGE_TILE_BUCKETS = 65536
 SCAN_LANES = 1024  # invocations of the one-workgroup prefix sum over the buckets (the GL minimum limit)
 ORDER_TILE_BITS = 4  # tile order: 16 x 16 screen tiles of 64 depth buckets each
+# the order stage's bucket counts, then as many scatter cursors (order.comp.j2), for the larger count
+_BUCKET_WORDS = 2 * max(BUCKETS, LARGE_TILE_BUCKETS)
 _GROUP = 64  # threads per workgroup of the vertex and setup stages
 _MAX_GROUPS_X = 65535  # the GL minimum of GL_MAX_COMPUTE_WORK_GROUP_COUNT; grids wrap into y
 
@@ -245,7 +247,7 @@ class ComputeRasterizer:
         self._require_vertices(vertices)
         if self._state is None:
             self._state = CounterBlock(ctx, STATE_WORDS)
-            self._buckets = ctx.buffer(reserve=max(BUCKETS, LARGE_TILE_BUCKETS) * 4)
+            self._buckets = ctx.buffer(reserve=_BUCKET_WORDS * 4)
         if vertices > self.vertex_capacity:
             self._release(self._verts)
             self.vertex_capacity = vertices
@@ -312,7 +314,7 @@ class ComputeRasterizer:
 
     def _order_pass(self, draw, order_kernels, depth_range: tuple[float, float], buckets: int) -> None:
         """Bucket-sort the draw's triangles in the frustum by view depth, index or screen tile (order.comp.j2)."""
-        ctx, (clear, count, scatter, scan) = self.ctx, order_kernels
+        ctx, (_clear, count, scatter, scan) = self.ctx, order_kernels
         triangles = draw.mesh.triangle_count
         self._fit_order(triangles)
         self._buckets.bind_to_storage_buffer(Buffer.RASTER_BUCKETS)
@@ -322,9 +324,8 @@ class ComputeRasterizer:
         for kernel in (count, scatter):
             set_uniform(kernel, "gua_tri_count", triangles)
         set_uniform(count, "gua_depth_range", depth_range)
-        for kernel, items in ((clear, buckets), (count, triangles)):  # clear the bucket counts, count
-            kernel.run(*_grid(items))
-            ctx.memory_barrier()
+        count.run(*_grid(triangles))  # (the counts start at zero: draw() clears them, each prefix sum after it)
+        ctx.memory_barrier()
         scan.run(1)  # prefix sum, and the setup stage's dispatch
         ctx.memory_barrier()
         scatter.run(*_grid(triangles))
@@ -340,7 +341,8 @@ class ComputeRasterizer:
         """Rasterize `draws` into the method's storage (bound by the method, as for hardware draws)."""
         if not draws:
             return
-        if self._fresh or self._frame is not frame:
+        begins = self._fresh or self._frame is not frame
+        if begins:
             self._begin(frame, draws)
             self._fresh, self._frame = False, frame
         ctx, device = self.ctx, self.device
@@ -356,6 +358,10 @@ class ComputeRasterizer:
             self._kernel("raster/order_scan.comp.j2", raster_buckets=buckets),
         )
         self._order_constants(frame, order_kernels, samples["gua_sample_span"])
+        if begins:  # the bucket counts start the frame at zero; every draw's prefix sum leaves them so
+            self._buckets.bind_to_storage_buffer(Buffer.RASTER_BUCKETS)
+            order_kernels[0].run(*_grid(buckets))
+            ctx.memory_barrier()
         set_uniform(args[1], "gua_capacity", self.large_capacity)
         set_uniform(args[2], "gua_capacity", self.job_capacity)
         # what every draw of this call shares, written once per kernel below (a kernel serves all the
@@ -496,7 +502,7 @@ class ComputeRasterizer:
         """Bytes of the rasterizer's buffers, allocated and used by the busiest draw."""
         return {
             "raster_vertices": self.vertex_capacity * VERTEX_RECORD_BYTES,
-            "raster_order": 2 * self.order_capacity * 4 + max(BUCKETS, LARGE_TILE_BUCKETS) * 4,
+            "raster_order": 2 * self.order_capacity * 4 + _BUCKET_WORDS * 4,
             "raster_large_queue": self.large_capacity * 4,
             "raster_large_queue_used": min(large_peak, self.large_capacity) * 4,
             "raster_tile_jobs": self.job_capacity * 8,
