@@ -28,6 +28,7 @@ import weakref
 from collections.abc import Mapping
 from types import MappingProxyType
 
+import moderngl
 import numpy as np
 
 from .. import env
@@ -93,6 +94,12 @@ BUCKETS = 16384  # buckets of the triangle order (a multiple of SCAN_LANES: orde
 LARGE_TILE_BUCKETS = 65536
 SCAN_LANES = 1024  # invocations of the one-workgroup prefix sum over the buckets (the GL minimum limit)
 ORDER_TILE_BITS = 4  # tile order: 16 x 16 screen tiles of 64 depth buckets each
+# Between the stages of a draw, what one kernel writes and the next reads: storage buffers, the
+# saturation-depth image and indirect dispatch arguments; draw() ends with a full barrier for whatever
+# reads the method's storage next.
+_STAGE_BARRIER = (
+    moderngl.SHADER_STORAGE_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT | moderngl.COMMAND_BARRIER_BIT
+)
 # the order stage's bucket counts, then as many scatter cursors (order.comp.j2), for the larger count
 _BUCKET_WORDS = 2 * max(BUCKETS, LARGE_TILE_BUCKETS)
 _GROUP = 64  # threads per workgroup of the vertex and setup stages
@@ -325,11 +332,11 @@ class ComputeRasterizer:
             set_uniform(kernel, "gua_tri_count", triangles)
         set_uniform(count, "gua_depth_range", depth_range)
         count.run(*_grid(triangles))  # (the counts start at zero: draw() clears them, each prefix sum after it)
-        ctx.memory_barrier()
+        ctx.memory_barrier(_STAGE_BARRIER)
         scan.run(1)  # prefix sum, and the setup stage's dispatch
-        ctx.memory_barrier()
+        ctx.memory_barrier(_STAGE_BARRIER)
         scatter.run(*_grid(triangles))
-        ctx.memory_barrier()
+        ctx.memory_barrier(_STAGE_BARRIER)
 
     @staticmethod
     def _release(buf) -> None:
@@ -361,7 +368,7 @@ class ComputeRasterizer:
         if begins:  # the bucket counts start the frame at zero; every draw's prefix sum leaves them so
             self._buckets.bind_to_storage_buffer(Buffer.RASTER_BUCKETS)
             order_kernels[0].run(*_grid(buckets))
-            ctx.memory_barrier()
+            ctx.memory_barrier(_STAGE_BARRIER)
         set_uniform(args[1], "gua_capacity", self.large_capacity)
         set_uniform(args[2], "gua_capacity", self.job_capacity)
         # what every draw of this call shares, written once per kernel below (a kernel serves all the
@@ -419,20 +426,21 @@ class ComputeRasterizer:
                 last = kernels, d.values
             self._mark("between_draws")  # from the last stage (or the set-up) to this draw's start
             vert.run(*_grid(len(d.mesh.positions)))
-            ctx.memory_barrier()
+            ctx.memory_barrier(_STAGE_BARRIER)
             self._mark("vertex")
             self._order_pass(d, order_kernels, ranges[d.index], buckets)
             self._mark("order")
             for prog in (setup, binner, fine):
                 set_uniform(prog, "gua_draw_index", d.index)
             setup.run_indirect(self._state.buffer, _DISPATCH_OFFSET["setup_x"])
-            ctx.memory_barrier()
+            ctx.memory_barrier(_STAGE_BARRIER)
             self._mark("setup")
             self._queued_stage(args[1], binner, "bin_x")
             self._mark("bin")
             self._queued_stage(args[2], fine, "fine_x")
             self._mark("fine")
             self._triangles += d.mesh.triangle_count
+        ctx.memory_barrier()
 
     def _mark(self, stage: str) -> None:
         """A GPU timestamp at the end of `stage` when stage profiling is on."""
@@ -442,9 +450,9 @@ class ComputeRasterizer:
     def _queued_stage(self, args, prog, dispatch_word: str) -> None:
         """Clamp the queue the last stage filled to its capacity (an args kernel), then run `prog` over it."""
         args.run(1)
-        self.ctx.memory_barrier()
+        self.ctx.memory_barrier(_STAGE_BARRIER)
         prog.run_indirect(self._state.buffer, _DISPATCH_OFFSET[dispatch_word])
-        self.ctx.memory_barrier()
+        self.ctx.memory_barrier(_STAGE_BARRIER)
 
     def finish(self, frame) -> bool:
         """Totals into frame.stats; after an overflow, grow and ask for the frame again (MAX_REGROW times)."""
