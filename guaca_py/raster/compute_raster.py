@@ -287,9 +287,11 @@ class ComputeRasterizer:
             self._order = self.ctx.buffer(reserve=max(1, triangles) * 4)
             self._keys = self.ctx.buffer(reserve=max(1, triangles) * 4)
 
-    def _depth_range(self, frame, draw) -> tuple[float, float]:
-        """Nearest and farthest view depth of the draw's bounding box corners (clip w), for the order."""
-        w = _bound_corners(draw.mesh) @ (frame.projection @ frame.view @ draw.world)[3]
+    @staticmethod
+    def _depth_range(clip_w, draw) -> tuple[float, float]:
+        """Nearest and farthest view depth (clip w) of the draw's bounding box corners, for the order;
+        `clip_w`: the last row of the frame's projection times view."""
+        w = _bound_corners(draw.mesh) @ (clip_w @ draw.world)
         return float(max(w.min(), 0.0)), float(max(w.max(), 0.0))
 
     @staticmethod
@@ -319,17 +321,18 @@ class ComputeRasterizer:
         """Buckets of the frame's triangle order: LARGE_TILE_BUCKETS for tile order in large frames."""
         return LARGE_TILE_BUCKETS if large_tile_frame(frame.method, frame.width * frame.height) else BUCKETS
 
-    def _order_pass(self, draw, order_kernels, depth_range: tuple[float, float], buckets: int) -> None:
-        """Bucket-sort the draw's triangles in the frustum by view depth, index or screen tile (order.comp.j2)."""
+    def _order_pass(self, triangles: int, order_kernels, depth_range: tuple[float, float], new_mesh: bool) -> None:
+        """Bucket-sort a draw's `triangles` in the frustum by view depth, index or screen tile (order.comp.j2).
+
+        draw() binds the buckets and the order list for all its draws; `new_mesh`: the draw before had
+        another mesh (the triangle count to set).
+        """
         ctx, (_clear, count, scatter, scan) = self.ctx, order_kernels
-        triangles = draw.mesh.triangle_count
-        self._fit_order(triangles)
-        self._buckets.bind_to_storage_buffer(Buffer.RASTER_BUCKETS)
-        self._order.bind_to_storage_buffer(Buffer.RASTER_ORDER)
         # the keys share the mesh vertices' number: those served the vertex stage only
         self._keys.bind_to_storage_buffer(Buffer.RASTER_ORDER_KEYS)
-        for kernel in (count, scatter):
-            set_uniform(kernel, "gua_tri_count", triangles)
+        if new_mesh:
+            for kernel in (count, scatter):
+                set_uniform(kernel, "gua_tri_count", triangles)
         set_uniform(count, "gua_depth_range", depth_range)
         count.run(*_grid(triangles))  # (the counts start at zero: draw() clears them, each prefix sum after it)
         ctx.memory_barrier(_STAGE_BARRIER)
@@ -384,30 +387,42 @@ class ComputeRasterizer:
         ready: set[int] = set()  # kernels given call_values in this call
         last = None  # (kernels, material instance) whose uniforms and textures the draw before set
         # draws run one after the other: take them in depth order too (see _order_pass)
-        ranges = {d.index: self._depth_range(frame, d) for d in draws}
+        clip_w = (frame.projection @ frame.view)[3]
+        ranges = {d.index: self._depth_range(clip_w, d) for d in draws}
         if self._front_to_back(frame.method):
             draws = sorted(draws, key=lambda d: ranges[d.index][0])
         else:
             draws = sorted(draws, key=lambda d: -ranges[d.index][1])
+        # sized for this call's largest mesh (a later call of the pass may bring a larger one than _begin saw)
+        sizes = [(len(d.mesh.positions), d.mesh.triangle_count) for d in draws]
+        vertices = max(v for v, _ in sizes)
+        if vertices > self.vertex_capacity:
+            self._require_vertices(vertices)
+            self._release(self._verts)
+            self.vertex_capacity = vertices
+            self._verts = ctx.buffer(reserve=vertices * VERTEX_RECORD_BYTES)
+        self._fit_order(max(t for _, t in sizes))
+        sizes = {d.index: size for d, size in zip(draws, sizes)}
         # the buffers every draw of the call shares (the order stage rebinds 9, the mesh's, per draw)
         self._verts.bind_to_storage_buffer(Buffer.RASTER_VERTICES)
         self._state.bind(Buffer.RASTER_STATE)
         self._large.bind_to_storage_buffer(Buffer.RASTER_LARGE)
         self._jobs.bind_to_storage_buffer(Buffer.RASTER_JOBS)
+        self._buckets.bind_to_storage_buffer(Buffer.RASTER_BUCKETS)
+        self._order.bind_to_storage_buffer(Buffer.RASTER_ORDER)
+        last_mesh = None
         for d in draws:
-            if len(d.mesh.positions) > self.vertex_capacity:  # a later call of the pass with a larger mesh
-                self._require_vertices(len(d.mesh.positions))
-                self._release(self._verts)
-                self.vertex_capacity = len(d.mesh.positions)
-                self._verts = ctx.buffer(reserve=self.vertex_capacity * VERTEX_RECORD_BYTES)
-                self._verts.bind_to_storage_buffer(Buffer.RASTER_VERTICES)
+            vertices, triangles = sizes[d.index]
+            new_mesh = d.mesh is not last_mesh
+            last_mesh = d.mesh
             kernels = programs.get(id(d.material))
             if kernels is None:  # per material, for this call (the method's state is fixed)
                 kernels = programs[id(d.material)] = self._programs(frame.method, d)
             vert, setup, binner, fine = kernels
             vbo, ibo = device.meshes.buffers(d.mesh)
-            vbo.bind_to_storage_buffer(Buffer.RASTER_MESH_VERTICES)
-            ibo.bind_to_storage_buffer(Buffer.RASTER_INDICES)
+            vbo.bind_to_storage_buffer(Buffer.RASTER_MESH_VERTICES)  # (the order stage's keys take its slot)
+            if new_mesh:
+                ibo.bind_to_storage_buffer(Buffer.RASTER_INDICES)
             for prog in kernels:
                 if prog.glo in ready:
                     continue
@@ -418,17 +433,17 @@ class ComputeRasterizer:
                     if per_program is not None:
                         per_program(prog)
             d.write_transform(vert)
-            set_uniform(vert, "gua_vertex_count", len(d.mesh.positions))
+            set_uniform(vert, "gua_vertex_count", vertices)  # (per kernel: draws of other materials between)
             if last is None or last[0] is not kernels or last[1] is not d.values:
                 apply_material(
                     device.textures, d, kernels
                 )  # (the same kernels and instance as the draw before are all set)
                 last = kernels, d.values
             self._mark("between_draws")  # from the last stage (or the set-up) to this draw's start
-            vert.run(*_grid(len(d.mesh.positions)))
+            vert.run(*_grid(vertices))
             ctx.memory_barrier(_STAGE_BARRIER)
             self._mark("vertex")
-            self._order_pass(d, order_kernels, ranges[d.index], buckets)
+            self._order_pass(triangles, order_kernels, ranges[d.index], new_mesh)
             self._mark("order")
             for prog in (setup, binner, fine):
                 set_uniform(prog, "gua_draw_index", d.index)
@@ -439,7 +454,7 @@ class ComputeRasterizer:
             self._mark("bin")
             self._queued_stage(args[2], fine, "fine_x")
             self._mark("fine")
-            self._triangles += d.mesh.triangle_count
+            self._triangles += triangles
         ctx.memory_barrier()
 
     def _mark(self, stage: str) -> None:
