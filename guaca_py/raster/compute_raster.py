@@ -100,8 +100,6 @@ ORDER_TILE_BITS = 4  # tile order: 16 x 16 screen tiles of 64 depth buckets each
 _STAGE_BARRIER = (
     moderngl.SHADER_STORAGE_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT | moderngl.COMMAND_BARRIER_BIT
 )
-# the order stage's bucket counts, then as many scatter cursors (order.comp.j2), for the larger count
-_BUCKET_WORDS = 2 * max(BUCKETS, LARGE_TILE_BUCKETS)
 _GROUP = 64  # threads per workgroup of the vertex and setup stages
 _MAX_GROUPS_X = 65535  # the GL minimum of GL_MAX_COMPUTE_WORK_GROUP_COUNT; grids wrap into y
 
@@ -254,7 +252,7 @@ class ComputeRasterizer:
         self._require_vertices(vertices)
         if self._state is None:
             self._state = CounterBlock(ctx, STATE_WORDS)
-            self._buckets = ctx.buffer(reserve=_BUCKET_WORDS * 4)
+            self._buckets = ctx.buffer(reserve=max(BUCKETS, LARGE_TILE_BUCKETS) * 4)
         if vertices > self.vertex_capacity:
             self._release(self._verts)
             self.vertex_capacity = vertices
@@ -321,21 +319,26 @@ class ComputeRasterizer:
         """Buckets of the frame's triangle order: LARGE_TILE_BUCKETS for tile order in large frames."""
         return LARGE_TILE_BUCKETS if large_tile_frame(frame.method, frame.width * frame.height) else BUCKETS
 
-    def _order_pass(self, triangles: int, order_kernels, depth_range: tuple[float, float], new_mesh: bool) -> None:
+    def _order_pass(
+        self, triangles: int, order_kernels, depth_range: tuple[float, float], buckets: int, new_mesh: bool
+    ) -> None:
         """Bucket-sort a draw's `triangles` in the frustum by view depth, index or screen tile (order.comp.j2).
 
         draw() binds the buckets and the order list for all its draws; `new_mesh`: the draw before had
         another mesh (the triangle count to set).
         """
-        ctx, (_clear, count, scatter, scan) = self.ctx, order_kernels
+        ctx, (clear, count, scatter, scan) = self.ctx, order_kernels
         # the keys share the mesh vertices' number: those served the vertex stage only
         self._keys.bind_to_storage_buffer(Buffer.RASTER_ORDER_KEYS)
         if new_mesh:
             for kernel in (count, scatter):
                 set_uniform(kernel, "gua_tri_count", triangles)
         set_uniform(count, "gua_depth_range", depth_range)
-        count.run(*_grid(triangles))  # (the counts start at zero: draw() clears them, each prefix sum after it)
-        ctx.memory_barrier(_STAGE_BARRIER)
+        # clear the bucket counts, count (a clear folded into the one-workgroup prefix sum made the order
+        # stage slower: docs/decisions.md, 2026-11-28 "the order stage's clear")
+        for kernel, items in ((clear, buckets), (count, triangles)):
+            kernel.run(*_grid(items))
+            ctx.memory_barrier(_STAGE_BARRIER)
         scan.run(1)  # prefix sum, and the setup stage's dispatch
         ctx.memory_barrier(_STAGE_BARRIER)
         scatter.run(*_grid(triangles))
@@ -351,8 +354,7 @@ class ComputeRasterizer:
         """Rasterize `draws` into the method's storage (bound by the method, as for hardware draws)."""
         if not draws:
             return
-        begins = self._fresh or self._frame is not frame
-        if begins:
+        if self._fresh or self._frame is not frame:
             self._begin(frame, draws)
             self._fresh, self._frame = False, frame
         ctx, device = self.ctx, self.device
@@ -368,10 +370,6 @@ class ComputeRasterizer:
             self._kernel("raster/order_scan.comp.j2", raster_buckets=buckets),
         )
         self._order_constants(frame, order_kernels, samples["gua_sample_span"])
-        if begins:  # the bucket counts start the frame at zero; every draw's prefix sum leaves them so
-            self._buckets.bind_to_storage_buffer(Buffer.RASTER_BUCKETS)
-            order_kernels[0].run(*_grid(buckets))
-            ctx.memory_barrier(_STAGE_BARRIER)
         set_uniform(args[1], "gua_capacity", self.large_capacity)
         set_uniform(args[2], "gua_capacity", self.job_capacity)
         # what every draw of this call shares, written once per kernel below (a kernel serves all the
@@ -443,7 +441,7 @@ class ComputeRasterizer:
             vert.run(*_grid(vertices))
             ctx.memory_barrier(_STAGE_BARRIER)
             self._mark("vertex")
-            self._order_pass(triangles, order_kernels, ranges[d.index], new_mesh)
+            self._order_pass(triangles, order_kernels, ranges[d.index], buckets, new_mesh)
             self._mark("order")
             for prog in (setup, binner, fine):
                 set_uniform(prog, "gua_draw_index", d.index)
@@ -525,7 +523,7 @@ class ComputeRasterizer:
         """Bytes of the rasterizer's buffers, allocated and used by the busiest draw."""
         return {
             "raster_vertices": self.vertex_capacity * VERTEX_RECORD_BYTES,
-            "raster_order": 2 * self.order_capacity * 4 + _BUCKET_WORDS * 4,
+            "raster_order": 2 * self.order_capacity * 4 + max(BUCKETS, LARGE_TILE_BUCKETS) * 4,
             "raster_large_queue": self.large_capacity * 4,
             "raster_large_queue_used": min(large_peak, self.large_capacity) * 4,
             "raster_tile_jobs": self.job_capacity * 8,
