@@ -201,6 +201,10 @@ SLOW_WRITE = """
 import os, signal, sys, time
 from guaca_py.output import write_atomic
 
+# a process started under nohup inherits SIGHUP ignored, which write_atomic rightly leaves alone:
+# the cases below are about the default dispositions
+signal.signal(signal.SIGHUP, signal.SIG_DFL)
+
 def slow(tmp):
     tmp.write_text("partial")
     os.kill(os.getpid(), getattr(signal, sys.argv[2]))  # the signal arrives in the middle of the write
