@@ -11,8 +11,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigError
+from ..numeric import FLOAT32_MAX
 from ..yaml_source import file_problem
-from .nodes import FLOAT32_MAX, MeshData
+from .nodes import MeshData
 from .texture import decode_image
 
 MESH_FORMATS_HINT = "supported formats: .obj, .ply, .stl, .glb, .gltf (anything trimesh reads)"

@@ -13,6 +13,7 @@ import numpy as np
 from pyglm import glm
 
 from ..errors import ConfigError
+from ..numeric import FLOAT32_MAX  # the largest magnitude a vertex attribute may hold: the GPU gets float32
 
 
 class ValueConfigError(ConfigError, ValueError):
@@ -115,10 +116,6 @@ class Transform:
 def _freeze(v) -> tuple:
     """A 3-vector as a hashable tuple (tuples as they are: the common case, once a node a frame)."""
     return v if type(v) is tuple else tuple(float(x) for x in v)
-
-
-#: largest magnitude a vertex attribute may hold: the GPU receives float32
-FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 @dataclass
