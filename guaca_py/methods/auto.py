@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ..registry import AUTO, AUTO_CANDIDATES, METHODS, auto_settings_schema
+from ..registry import AUTO, AUTO_CANDIDATES, METHODS
 
 
 @dataclass(frozen=True)
@@ -215,10 +215,5 @@ def choose(caps, samples: int = 1) -> tuple[str, str]:
     raise LookupError(f"no method of the {table.name} table runs on {caps.gl_renderer}")
 
 
-def settings_schema() -> dict:
-    """Settings `auto` accepts: those of any method it may pick (each picked method takes its own)."""
-    return auto_settings_schema()
-
-
 AUTO_CANDIDATES.update(candidates())
-__all__ = ["AUTO", "DeviceTable", "TABLES", "candidates", "choose", "settings_schema", "table_for"]
+__all__ = ["AUTO", "DeviceTable", "TABLES", "candidates", "choose", "table_for"]

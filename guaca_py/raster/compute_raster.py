@@ -242,22 +242,15 @@ class ComputeRasterizer:
         ctx = self.ctx
         tiles = math.ceil(frame.width / self.tile) * math.ceil(frame.height / self.tile)
         triangles = max(d.mesh.triangle_count for d in draws)
-        vertices = max(len(d.mesh.positions) for d in draws)
         large = self._want.pop("large", 0) or max(self.large_capacity, 1024, triangles // 8)
         jobs = self._want.pop("jobs", 0) or max(self.job_capacity, 4096, 4 * tiles)
         limits = self.device.caps.limits
         if limits is not None:  # the storage rule: queues past it drop (counted, warned), never overflow memory
             large = max(1, min(large, limits.elements(4)))
             jobs = max(1, min(jobs, limits.elements(8)))
-        self._require_vertices(vertices)
         if self._state is None:
             self._state = CounterBlock(ctx, STATE_WORDS)
             self._buckets = ctx.buffer(reserve=max(BUCKETS, LARGE_TILE_BUCKETS) * 4)
-        if vertices > self.vertex_capacity:
-            self._release(self._verts)
-            self.vertex_capacity = vertices
-            self._verts = ctx.buffer(reserve=vertices * VERTEX_RECORD_BYTES)
-        self._fit_order(triangles)
         if large != self.large_capacity:
             self._release(self._large)
             self.large_capacity, self._large = large, ctx.buffer(reserve=large * 4)
@@ -271,9 +264,13 @@ class ComputeRasterizer:
         self._triangles = 0
         self._mark("begin")  # stage profiling: what follows until the first draw's vertex stage is its set-up
 
-    def _require_vertices(self, vertices: int) -> None:
-        """Transformed vertices and the triangle order have no overflow path: they must fit the storage rule."""
+    def _fit_vertices(self, vertices: int) -> None:
+        """Room for draws of up to `vertices` transformed vertices (no overflow path: within the storage rule)."""
         require_bytes(self.device.caps.limits, vertices * VERTEX_RECORD_BYTES, "transparency.raster", _TOO_BIG)
+        if vertices > self.vertex_capacity:
+            self._release(self._verts)
+            self.vertex_capacity = vertices
+            self._verts = self.ctx.buffer(reserve=vertices * VERTEX_RECORD_BYTES)
 
     def _fit_order(self, triangles: int) -> None:
         """An order list for draws of up to `triangles` triangles."""
@@ -391,17 +388,10 @@ class ComputeRasterizer:
             draws = sorted(draws, key=lambda d: ranges[d.index][0])
         else:
             draws = sorted(draws, key=lambda d: -ranges[d.index][1])
-        # sized for this call's largest mesh (a later call of the pass may bring a larger one than _begin saw)
-        sizes = [(len(d.mesh.positions), d.mesh.triangle_count) for d in draws]
-        vertices = max(v for v, _ in sizes)
-        if vertices > self.vertex_capacity:
-            self._require_vertices(vertices)
-            self._release(self._verts)
-            self.vertex_capacity = vertices
-            self._verts = ctx.buffer(reserve=vertices * VERTEX_RECORD_BYTES)
-        self._fit_order(max(t for _, t in sizes))
-        sizes = {d.index: size for d, size in zip(draws, sizes)}
-        # the buffers every draw of the call shares (the order stage rebinds 9, the mesh's, per draw)
+        # sized for this call's largest mesh, here rather than in _begin: a later call of the pass may bring one larger
+        self._fit_vertices(max(len(d.mesh.positions) for d in draws))
+        self._fit_order(max(d.mesh.triangle_count for d in draws))
+        # the buffers every draw of the call shares
         self._verts.bind_to_storage_buffer(Buffer.RASTER_VERTICES)
         self._state.bind(Buffer.RASTER_STATE)
         self._large.bind_to_storage_buffer(Buffer.RASTER_LARGE)
@@ -410,7 +400,7 @@ class ComputeRasterizer:
         self._order.bind_to_storage_buffer(Buffer.RASTER_ORDER)
         last_mesh = None
         for d in draws:
-            vertices, triangles = sizes[d.index]
+            vertices, triangles = len(d.mesh.positions), d.mesh.triangle_count
             new_mesh = d.mesh is not last_mesh
             last_mesh = d.mesh
             kernels = programs.get(id(d.material))
