@@ -151,7 +151,7 @@ def main(argv: list[str] | None = None) -> int:
         name, rows = run(args, progress)
         res = Results(args, name, argv)
         rec = {"rows": rows}
-    res.finish(rec, markdown, measured=not args.replot)
+    res.finish(rec, markdown)
     return 0
 
 

@@ -63,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
         device = open_device()
         res = Results(args, device.name, argv)
         data = run(device.ctx, args.size, args.layers)
-    print(res.finish(data, lambda d: table(d) + f"\nCommand: `{d['command']}`\n", chart, measured=not args.replot))
+    print(res.finish(data, lambda d: table(d) + f"\nCommand: `{d['command']}`\n", chart))
     return 0
 
 

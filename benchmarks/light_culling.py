@@ -206,7 +206,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         rec = run_per_process(args) if args.per_process else run(args)
         res = Results(args, rec["device"], argv)
-    res.finish(rec, markdown, chart, measured=not args.replot)
+    res.finish(rec, markdown, chart)
     return 0
 
 

@@ -62,9 +62,8 @@ def main(argv: list[str] | None = None) -> int:
         data = run(device, args, res.command)
     page = res.finish(
         data,
-        lambda d: table(d["rows"], d["meta"], d.get("command")),
+        lambda d: table(d["rows"], d["meta"], d["command"]),
         lambda d: chart(d["rows"], d["meta"]),
-        measured=not args.replot,
     )
     print(page)
     return 0

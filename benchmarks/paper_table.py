@@ -386,14 +386,14 @@ def main(argv: list[str] | None = None) -> int:
             raise SystemExit(f"no Table 1 scene in {args.scenes} ({', '.join(PAPER)}): copy ../shared/scenes there")
         device = open_device()
         res = Results(args, device.name, argv)
-        out = {"device": device.name, "command": res.command, "size": args.size, "loop_frames": args.loop_frames}
+        out = {"size": args.size, "loop_frames": args.loop_frames}
         out["capabilities"] = device.caps.as_dict()
         stacks = 0 if args.skip_stacks else 1 + len(STACK_METHODS) * len(STACK_LAYERS)
         progress = Progress(stacks + len(paths) * len(args.methods) * len(args.raster))
         if not args.skip_stacks:
             stack_rows(args, device.ctx, out, progress)
         scene_rows(args, device.ctx, out, progress, paths)
-    res.finish(out, markdown, chart, measured=not args.replot)
+    res.finish(out, markdown, chart)
     return 0
 
 

@@ -263,12 +263,12 @@ def main(argv: list[str] | None = None) -> int:
     else:
         device = open_device()
         res = Results(a, device.name, argv)
-        data = run(a, device, res.command)
-    print(res.finish(data, markdown, measured=not a.replot))
+        data = run(a, device)
+    print(res.finish(data, markdown))
     return 0
 
 
-def run(a, device, command: str) -> dict:
+def run(a, device) -> dict:
     """Error, then interleaved rounds of timed frames of every configuration; the record."""
     scene = planes_scene(a.layers)
     ref, mask, layers = reference_of(scene, a.size, a.size)
@@ -325,7 +325,6 @@ def run(a, device, command: str) -> dict:
         row["median_wall_s"] = statistics.median(row["wall_s"])
         row["median_cpu_s"] = statistics.median(row["cpu_s"])
     meta = {
-        "device": device.name,
         "cpus": os.cpu_count(),
         "machine": platform.processor() or platform.machine(),
         "vtk": vtk_version,
@@ -337,7 +336,6 @@ def run(a, device, command: str) -> dict:
         "rounds": a.rounds,
         "warmup": a.warmup,
         "load_average": os.getloadavg(),
-        "command": command,
     }
     return {"meta": meta, "rows": rows}
 
@@ -346,7 +344,7 @@ def markdown(data: dict) -> str:
     """The table: wall and CPU seconds per frame, geometry passes and error of each configuration."""
     meta, rows = data["meta"], data["rows"]
     lines = [
-        f"{meta['layers']} shuffled screen-covering quads (alpha 0.5, unlit), {meta['size']}², {meta['device']}, "
+        f"{meta['layers']} shuffled screen-covering quads (alpha 0.5, unlit), {meta['size']}², {data['device']}, "
         f"{meta['cpus']} CPUs, load average at the end {', '.join(f'{x:.2f}' for x in meta['load_average'])}. "
         f"Median of {meta['rounds']} interleaved rounds x {meta['frames_per_round']} frames after "
         f"{meta['warmup']} warm-up; a frame "
@@ -370,7 +368,7 @@ def markdown(data: dict) -> str:
     lines += comparisons(rows)
     if meta.get("vtk_note"):
         lines += ["", meta["vtk_note"]]
-    lines += ["", f"Command: `{meta['command']}`", ""]
+    lines += ["", f"Command: `{data['command']}`", ""]
     return "\n".join(lines)
 
 

@@ -159,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
             "rows": rows,
         }
         device.release()
-    res.finish(rec, markdown, chart, measured=not args.replot)
+    res.finish(rec, markdown, chart)
     return 0
 
 

@@ -44,11 +44,11 @@ from guaca_py.benchmarking import (
     open_device,
     scene_paths,
 )
+from guaca_py.benchmarking.aa_chart import AA_METHOD
 from guaca_py.methods import method_class, method_ids
 from guaca_py.reference import linear_pipeline, supersampled
 from guaca_py.scene.loader import load_scene
 
-AA_METHOD = "presort_lf_et"
 REFERENCE_METHOD = "presort_lf"
 
 
@@ -141,7 +141,11 @@ def run_scene(ctx, path: Path, args, progress: Progress) -> dict:
     share = float(np.mean([m.mean() for m in masks])) if masks else 0.0
     progress.note(
         f"{path.stem}: reference {time.perf_counter() - t0:.1f} s, stable pixels {share:.1%} per pair"
-        + (f", OVERFLOW: {overflow} fragments dropped (smaller --tile)" if overflow else "")
+        + (
+            f", OVERFLOW: {overflow} fragments dropped in tiles already split to the smallest (256 px): a --tile below 256 or a larger pool"
+            if overflow
+            else ""
+        )
     )
 
     def measure_row(r: Renderer, row: dict) -> None:

@@ -121,27 +121,33 @@ class Results:
         self.dir = args.out or script.parent / "results" / device_slug(device) / script.stem  # one folder a script
         argv = sys.argv[1:] if argv is None else argv
         self.command = f"python benchmarks/{script.name} {shlex.join(argv)}".rstrip()
+        self.replot = False  # set by existing(): the record is read back, not measured
 
     @classmethod
     def existing(cls, args: argparse.Namespace, argv: list[str] | None = None, name: str | None = None) -> Results:
         """The folder a --replot reads and rewrites: --out, else this device's."""
         if args.out is not None:
-            return cls(args, "?", argv, name)
-        device = open_device()
-        try:
-            return cls(args, device.name, argv, name)
-        finally:
-            device.release()
+            res = cls(args, "?", argv, name)
+        else:
+            device = open_device()
+            try:
+                res = cls(args, device.name, argv, name)
+            finally:
+                device.release()
+        res.replot = True
+        return res
 
     def path(self, suffix: str, stem: str | None = None) -> Path:
         """A file of the folder: <stem or benchmark name><suffix>."""
         return self.dir / f"{stem or self.name}{suffix}"
 
     def write_json(self, data: dict, stem: str | None = None) -> Path:
-        """Write the record (with device and command added) as <stem>.json."""
+        """Write the record as <stem>.json, headed by this run's device and command (data's own are ignored)."""
         self.dir.mkdir(parents=True, exist_ok=True)
         path = self.path(".json", stem)
-        path.write_text(json.dumps({"device": self.device, "command": self.command, **data}, indent=1, default=str))
+        rec = {"device": self.device, "command": self.command}
+        rec.update((k, v) for k, v in data.items() if k not in rec)
+        path.write_text(json.dumps(rec, indent=1, default=str))
         return path
 
     def read_json(self, stem: str | None = None) -> dict:
@@ -178,14 +184,12 @@ class Results:
         rec: dict,
         markdown: Callable[[dict], str],
         chart: Callable[[dict], Callable[[object], object]] | None = None,
-        *,
-        measured: bool,
     ) -> str:
         """The end of a run or a --replot: a measured record is written as <name>.json (device and
         command beside it); then the page (`markdown(rec)`) and the chart (`chart(rec)`, a draw
         function for write_chart) from the record with its device and command. Returns the page."""
+        measured = not self.replot
         if measured:
-            rec = {k: v for k, v in rec.items() if k not in ("device", "command")}
             self.write_json(rec)
             rec = {**rec, "device": self.device, "command": self.command}
         page = markdown(rec)

@@ -472,5 +472,5 @@ def main(script: str, argv: list[str]) -> int:
         rec = run(args, device, res)
         rec["field_size"] = args.size
         device.release()
-    res.finish(rec, markdown, chart, measured=not args.replot)
+    res.finish(rec, markdown, chart)
     return 0
