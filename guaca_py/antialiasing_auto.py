@@ -24,7 +24,7 @@ of the costs around the line.
 Otherwise supersample 2 is chosen where its estimate is lower (by HYSTERESIS when the previous frame
 ran the other mode, so a camera near the crossing does not switch every frame). Either way it needs
 the 1-sample fragments, four times over, to fit the method's node pool at four times the pixels (the
-pool's own sizing by the device's storage rule, ABuffer.max_fragments); 4 samples otherwise, and
+pool's own sizing by the device's storage rule, TransparencyMethod.pool_fragments); 4 samples otherwise, and
 always for a method that cannot carry coverage masks (supersample 2 then) or a frame without
 transparent draws.
 """
@@ -79,14 +79,14 @@ def choose(
     measured: dict | None,
     previous: str | None,
     coverage_possible: str | None,
-    max_fragments: Callable[[int], int] | None,
+    pool_fragments: Callable[[int], int] | None,
 ) -> tuple[str, str]:
     """('samples' or 'supersample', why) for a frame, from the previous frame's measurements.
 
     `measured`: measure()'s dict (mean triangle area, normal turn, 1-sample fragments, output pixels, transparent
     draws) or None before the first frame;
     `previous`: the mode the previous frame ran; `coverage_possible`: None, or why 4 samples cannot run;
-    `max_fragments`: the method's pool rule, rendered pixels -> the most fragments it stores (ABuffer.max_fragments).
+    `pool_fragments`: the method's pool rule, rendered pixels -> the most fragments it stores (TransparencyMethod.pool_fragments).
     """
     if coverage_possible is not None:
         return "supersample", coverage_possible
@@ -98,9 +98,9 @@ def choose(
     cov, ss = coverage_cost(area), supersample_cost(area)
     costs = f"mean triangle area {area:.3g} px²: estimated cost x{cov:.2f} with 4 samples, x{ss:.2f} with supersample 2"
     turn = measured.get("normal_turn_per_px", 0.0)
-    if max_fragments is not None:
+    if pool_fragments is not None:
         need = SUPERSAMPLE**2 * measured["fragments_1x"]
-        room = max_fragments(SUPERSAMPLE**2 * measured["output_pixels"])
+        room = pool_fragments(SUPERSAMPLE**2 * measured["output_pixels"])
         if need > room:
             return (
                 "samples",
@@ -176,9 +176,9 @@ class AutoAntialiasing:
             else f"method '{method_cls.id}' carries no coverage masks ({method_cls.antialiasing_refusal})"
         )
 
-    def choose(self, max_fragments: Callable[[int], int] | None) -> tuple[Antialiasing, dict]:
+    def choose(self, pool_fragments: Callable[[int], int] | None) -> tuple[Antialiasing, dict]:
         """The mode of the next frame and its report for `stats['antialiasing']['auto']`."""
-        mode, why = choose(self.measured, self.mode, self.why_not_coverage, max_fragments)
+        mode, why = choose(self.measured, self.mode, self.why_not_coverage, pool_fragments)
         self.mode = mode
         aa = self.coverage if mode == "samples" else self.supersampled
         report = {"chose": label(aa), "why": why}

@@ -370,8 +370,8 @@ class Renderer:
         scene.check()  # the data classes are mutable: a camera or light changed since construction is checked here
         self._aa_choice = None
         if self.aa_auto is not None:  # this call's mode, from what the previous frame measured
-            # the A-buffer's pool rule; a method without one carries no coverage masks and is supersampled anyway
-            pool = getattr(self.method, "max_fragments", None)
+            # the method's pool rule (a method without one carries no coverage masks: it is supersampled anyway)
+            pool = self.method.pool_fragments if self.method.supports_antialiasing else None
             self.device.antialiasing, self._aa_choice = self.aa_auto.choose(pool)
             self.method.aa_samples = self.device.samples
         k = self.device.antialiasing.supersample  # the frame renders at k times the size, box filtered down

@@ -79,14 +79,14 @@ def test_auto_keeps_samples_where_supersampling_would_not_fit_or_has_nothing_to_
     room = GIB // 32 - 1
     top = room // 4
     assert top * 4 * 40 > GIB  # a 40-bytes-a-node estimate against one buffer refused this; it fits
-    assert choose(measured(tiny, top), "samples", None, pool.max_fragments)[0] == "supersample"
-    mode, why = choose(measured(tiny, top + 1), "samples", None, pool.max_fragments)
+    assert choose(measured(tiny, top), "samples", None, pool.pool_fragments)[0] == "supersample"
+    mode, why = choose(measured(tiny, top + 1), "samples", None, pool.pool_fragments)
     assert mode == "samples" and f"would store {4 * (top + 1):,} fragments, over the {room:,}" in why
     # a frame so large that the heads leave the links' buffer room for 2**24 nodes: that buffer binds
     pixels = (GIB // pool.link_bytes - (1 << 24)) // 4
     top = ((1 << 24) - 1) // 4
-    assert choose(measured(tiny, top, pixels), "samples", None, pool.max_fragments)[0] == "supersample"
-    assert choose(measured(tiny, top + 1, pixels), "samples", None, pool.max_fragments)[0] == "samples"
+    assert choose(measured(tiny, top, pixels), "samples", None, pool.pool_fragments)[0] == "supersample"
+    assert choose(measured(tiny, top + 1, pixels), "samples", None, pool.pool_fragments)[0] == "samples"
     assert choose({**measured(tiny), "transparent_draws": 0}, "samples", None, None)[0] == "samples"
     assert choose(measured(1000.0), "samples", "method 'dfb' carries no coverage masks", None) == (
         "supersample",

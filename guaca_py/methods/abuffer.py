@@ -130,7 +130,7 @@ class ABuffer(TransparencyMethod):
         """Most nodes the device's storage rule allows for this frame size (guaca_py/limits.py)."""
         return pool_node_limit(self.caps.limits, pixels * (1 + self.extra_slots), self.link_bytes, NODE_PAYLOAD_BYTES)
 
-    def max_fragments(self, pixels: int) -> int:
+    def pool_fragments(self, pixels: int) -> int:
         """Most fragments the pool can store for a frame of `pixels` rendered pixels: its largest size less node 0."""
         return self.max_capacity(pixels) - 1  # node 0 is the null link
 

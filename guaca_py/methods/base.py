@@ -112,6 +112,10 @@ class TransparencyMethod:
     # by a method whose fragment-shader path would be slow with the choices it made), or None
     auto_compute_reason: str | None = None
 
+    def pool_fragments(self, pixels: int) -> int | None:
+        """Most fragments the method's storage holds for `pixels` rendered pixels (None: it stores no list)."""
+        return None
+
     def raster_order(self, pixels: int = 0) -> str:
         """The compute rasterizer's triangle order for a frame of `pixels`: the `raster_order` setting, or for `auto` the measured rule."""
         order = self.settings.get("raster_order", "auto")

@@ -56,6 +56,9 @@ EMPTY_NEAR = "uvec4(GUA_INF, 0u, 0u, 0u)"  # slot clears (GLSL) of step.comp.j2'
 EMPTY_NEAR_TIE = "uvec4(0u, 0u, 0u, GUA_TIE_MAX)"
 ZERO = "uvec4(0u)"
 EMPTY_NEXT = "GUA_DUAL_EMPTY_NEXT"  # dual: nearest key +inf, farthest -1
+# the steps of peeling/step.comp.j2 that shade a peeled layer: only they get the lighting code and the lights
+# (dual's passes shade in place; every other step only moves keys, clears or counts)
+SHADING_STEPS = frozenset(("nearest", "multilayer", "coherent_after_5"))
 _FETCH_EXT = "#extension GL_EXT_shader_framebuffer_fetch : require\n"
 _INTERLOCK_EXT = "#extension GL_ARB_fragment_shader_interlock : require\n"
 
@@ -130,7 +133,6 @@ class PeelKind:
     has_back: bool = False  # a back accumulation (dual)
     has_range: bool = False  # a per-pixel compositing range texture (hybrid, coherent)
     needs_ordering: bool = True  # geometry passes read-modify-write per-pixel state in primitive order
-    steps_shade: bool = True  # its steps shade layers (dual: its passes shade, its steps only move keys)
     # dual: the init step starts each pixel's upper bound at its opaque depth (the first pass tests only it)
     upper_opaque: bool = False
     # storage of its own beside the textures (multi-layer peeling's node pool): made as storage(method)
@@ -257,7 +259,7 @@ class Peeling(TransparencyMethod):
     def step(self, frame, name: str) -> None:
         """Run one compute step of peeling/step.comp.j2 over every pixel."""
         slots = self.slot_names()
-        shades = self.kind.steps_shade
+        shades = name in SHADING_STEPS
         prog = frame.programs.compute(
             "peeling/step.comp.j2",
             method=self.step_method,
@@ -558,7 +560,6 @@ register("method")(
             # pass's second nearest and second farthest; how many fragments are left
             (("next", 4, EMPTY_NEXT), ("second", 4, EMPTY_NEXT), ("left", 1, ZERO)),
             has_back=True,
-            steps_shade=False,
             upper_opaque=True,
         ),
         PEEL_SETTINGS,
