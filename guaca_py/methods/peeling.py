@@ -15,7 +15,8 @@ with deterministic ties needs a 64-bit (depth, tie) comparison. The per-pass "de
 therefore emulated in colour targets read and written in primitive order (framebuffer fetch, or
 images inside an ordered fragment shader interlock).
 
-The peeling methods differ in their per-pixel state (the slots of the emulated depth buffer), in
+The peeling methods differ in their per-pixel state (the steps' slots; the geometry phases order
+those or textures of their own, `PHASES`), in
 the compute steps' variant and in their loop of geometry passes and steps: `PeelKind` records
 them, the loop as a plain function of the method (hybrid and coherent layer peeling's in
 peeling_coherent.py, multi-layer peeling's with its node pool in peeling_multilayer.py).
@@ -122,7 +123,7 @@ PHASES = {
 
 @dataclass(frozen=True)
 class PeelKind:
-    """What one peeling method chooses: its ordered per-pixel state, its steps and its loop."""
+    """What one peeling method chooses: its steps' per-pixel state, its steps and its loop."""
 
     step_method: str  # `method` variable of peeling/step.comp.j2
     render: Callable[[Peeling, Any], None]  # geometry passes and steps until done: render(method, frame)
@@ -328,12 +329,12 @@ class Peeling(TransparencyMethod):
         """One pass over the transparent draws (or `draws`) that updates the phase's ordered state in primitive order."""
         mgl = moderngl
         ctx = frame.ctx
-        slots = self.phase_slots(phase)
-        if self.order == "fetch" and slots:
-            self._fbo(frame, phase, slots).use()
+        ordered = self.phase_slots(phase)
+        if self.order == "fetch" and ordered:
+            self._fbo(frame, phase, ordered).use()
         else:
             self._dummy_fbo(frame).use()
-            for i, n in enumerate(slots):
+            for i, n in enumerate(ordered):
                 self._tex[n].bind_to_image(Image.PEEL_ORDERED_SLOTS + i, read=True, write=True)
         ctx.disable(mgl.DEPTH_TEST | mgl.CULL_FACE)
         # With blending and depth test both off, llvmpipe takes a draw that covers a whole 64x64
