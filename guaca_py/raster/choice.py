@@ -115,41 +115,42 @@ def _on_screen(mesh, world: np.ndarray, view_projection: np.ndarray, width: int,
 
 
 def projected_shape(
-    mesh, world: np.ndarray, view_projection: np.ndarray, width: int, height: int
+    mesh, world: np.ndarray, view_projection: np.ndarray, width: int, height: int, turn: bool = True
 ) -> tuple[float, float]:
     """(mean area in px², normal turn in radians per px) of the mesh's sampled triangles in front of the
     near plane and on screen ((0, 0): none), from one projection of the sample, cached per draw and camera.
 
     The turn is the median over those triangles of the largest angle between two corners' normals over
     the length of their edge in pixels (0 for a mesh without normals): shading varies within a pixel
-    where it is large."""
-    key = (id(mesh), world.tobytes(), view_projection.tobytes(), width, height)
+    where it is large. `turn=False`: the area alone (the turn reads 0), as the rasterizer's choice per draw
+    needs, without the normals' work."""
+    key = (id(mesh), world.tobytes(), view_projection.tobytes(), width, height, turn)
     hit = _shapes.get(key)
     if hit is not None:  # the common case: an unchanged draw and camera
         return hit
     xy, rows = _on_screen(mesh, world, view_projection, width, height)
-    area = turn = 0.0
+    area = turned = 0.0
     if len(xy):
         e1, e2 = xy[:, 1] - xy[:, 0], xy[:, 2] - xy[:, 0]
         area = float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).mean()) * 0.5
         _, normals = _sample(mesh)
-        if normals is not None:
+        if turn and normals is not None:
             n = normals.reshape(-1, 3, 3)[rows] @ np.linalg.inv(world[:3, :3])  # the normal matrix, on row vectors
             n /= np.maximum(np.linalg.norm(n, axis=2, keepdims=True), 1e-30)
             turns = []
             for a, b in ((0, 1), (0, 2), (1, 2)):
                 angle = np.arccos(np.clip((n[:, a] * n[:, b]).sum(axis=1), -1.0, 1.0))
                 turns.append(angle / np.maximum(np.hypot(*(xy[:, b] - xy[:, a]).T), 1e-3))
-            turn = float(np.median(np.max(turns, axis=0)))
+            turned = float(np.median(np.max(turns, axis=0)))
     if len(_shapes) >= 256:  # bounded: a moving camera or node makes every key new
         _shapes.clear()
-    _shapes[key] = (area, turn)
-    return area, turn
+    _shapes[key] = (area, turned)
+    return area, turned
 
 
 def mean_projected_area(mesh, world: np.ndarray, view_projection: np.ndarray, width: int, height: int) -> float:
     """Mean screen area in px² of the sampled triangles in front of the near plane and on screen (0: none)."""
-    return projected_shape(mesh, world, view_projection, width, height)[0]
+    return projected_shape(mesh, world, view_projection, width, height, turn=False)[0]
 
 
 def compute_kernels_draw(raster: str | None, caps) -> bool:
