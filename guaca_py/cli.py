@@ -5,7 +5,11 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import sys
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import NoReturn
 
 from .args_check import check_method_option, check_outputs, check_render_args, check_view_args, parse_set_option
@@ -259,10 +263,51 @@ BROKEN_PIPE_STATUS = 141
 INTERRUPTED_STATUS = 130
 
 
+#: where import's own code runs; its lock cleanup is a weakref callback, which swallows an exception
+_IMPORT_MACHINERY = ("<frozen importlib._bootstrap>", "<frozen importlib._bootstrap_external>")
+#: how long a Ctrl-C that landed in import's machinery waits to be raised again, outside it
+_CTRL_C_RETRY_S = 0.002
+
+
+def _ctrl_c(signum: int, frame) -> None:
+    """Raise KeyboardInterrupt, except inside import's machinery: there, raise it again a moment later.
+
+    A lazy import drops its module lock through a weakref callback; an exception raised in a
+    callback cannot propagate, so Python prints it as "Exception ignored" and the command would go
+    on as if Ctrl-C had not been pressed.
+    """
+    if frame is not None and frame.f_code.co_filename in _IMPORT_MACHINERY:
+        signal.setitimer(signal.ITIMER_REAL, _CTRL_C_RETRY_S)
+        return
+    raise KeyboardInterrupt
+
+
+@contextmanager
+def _ctrl_c_raised_outside_imports() -> Iterator[None]:
+    """Ctrl-C raises KeyboardInterrupt where the command can act on it (main thread, Python's own handler)."""
+    ours = (
+        threading.current_thread() is threading.main_thread()
+        and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        and signal.getsignal(signal.SIGALRM) == signal.SIG_DFL
+        and hasattr(signal, "setitimer")
+    )
+    if ours:
+        signal.signal(signal.SIGINT, _ctrl_c)
+        signal.signal(signal.SIGALRM, _ctrl_c)  # the retry: same handler, so it waits again if still in an import
+    try:
+        yield
+    finally:
+        if ours:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            signal.signal(signal.SIGALRM, signal.SIG_DFL)
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status: 2 bad input or device, 130 after Ctrl-C, 141 if stdout's reader left."""
     try:
-        status = _run(build_parser().parse_args(argv))
+        with _ctrl_c_raised_outside_imports():
+            status = _run(build_parser().parse_args(argv))
         sys.stdout.flush()  # a closed pipe shows here at the latest, not in the interpreter's exit
         return status
     except BrokenPipeError:  # `guaca render | head -1`: the files are written, the rest of the report has no reader

@@ -521,3 +521,24 @@ def test_api_sizes_take_numpy_integers_and_name_the_argument(renderer_factory):
         assert msg.startswith("'width': must be a positive integer, got") and got in msg and "--" not in msg, msg
     with pytest.raises(LimitError, match="^'height': must be a positive integer, got -2"):
         r.render(demo_scene(), 16, -2)
+
+
+def test_ctrl_c_in_import_machinery_is_raised_again_outside_it():
+    """A Ctrl-C that lands in import's lock cleanup (a weakref callback, which would swallow it) waits 2 ms."""
+    import signal
+    import time
+    import types
+
+    from guaca_py import cli
+
+    inside_import = types.SimpleNamespace(f_code=types.SimpleNamespace(co_filename="<frozen importlib._bootstrap>"))
+    with cli._ctrl_c_raised_outside_imports():
+        assert signal.getsignal(signal.SIGINT) is cli._ctrl_c
+        cli._ctrl_c(signal.SIGINT, inside_import)  # no exception here: it would be lost
+        assert signal.getitimer(signal.ITIMER_REAL)[0] > 0
+        with pytest.raises(KeyboardInterrupt):
+            time.sleep(1)  # the retry's SIGALRM raises it, outside the import
+        with pytest.raises(KeyboardInterrupt):
+            cli._ctrl_c(signal.SIGINT, None)
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    assert signal.getsignal(signal.SIGALRM) == signal.SIG_DFL
