@@ -134,9 +134,7 @@ class TextureCache(_FrameCache):
                     key=f"TextureImage {name.name!r}",
                     hint="scale the image down",
                 )
-            img = np.ascontiguousarray(name.pixels[::-1])  # row 0 at the top -> GL's bottom-up rows
-            tex = self.ctx.texture(name.size, 4, img.tobytes())
-            tex.build_mipmaps()
+            tex = self._upload(name.pixels)
         elif name in _BUILTIN_TEXELS:
             tex = self.ctx.texture((1, 1), 4, bytes(_BUILTIN_TEXELS[name]))
         else:
@@ -151,11 +149,15 @@ class TextureCache(_FrameCache):
                 where = f"relative names are looked for beside the material ({base})" if relative else "check the path"
                 raise ConfigError(f"texture {problem}", path, hint=where)
             limit = "the device's largest" if device <= MAX_TEXTURE_SIDE else "the largest read"
-            pixels = read_texture_file(path, min(device, MAX_TEXTURE_SIDE), limit)
-            img = np.ascontiguousarray(pixels[::-1])  # row 0 at the top -> GL's bottom-up rows
-            tex = self.ctx.texture((img.shape[1], img.shape[0]), 4, img.tobytes())
-            tex.build_mipmaps()
+            tex = self._upload(read_texture_file(path, min(device, MAX_TEXTURE_SIDE), limit))
         self._tex[key] = tex
+        return tex
+
+    def _upload(self, pixels: np.ndarray):
+        """An RGBA8 texture with mipmaps of `pixels` (rows from the top, height x width x 4)."""
+        img = np.ascontiguousarray(pixels[::-1])  # row 0 at the top -> GL's bottom-up rows
+        tex = self.ctx.texture((img.shape[1], img.shape[0]), 4, img.tobytes())
+        tex.build_mipmaps()
         return tex
 
     def _free(self, key) -> None:
