@@ -6,7 +6,6 @@ import numpy as np
 
 from ..pipeline.resources import HOST_MARK
 from ..pipeline.retry import settle
-from ..raster.choice import large_tile_frame
 from ..raster.compute_raster import ORDER_TILE_BITS
 from ..registry import register
 from ..shaders import set_uniform
@@ -24,14 +23,15 @@ def composite_edge(supersample: int) -> int:
 STRIP_TILES = 2
 
 
-def composite_strip(frame, edge: int) -> int:
-    """Workgroups per launch strip of the composite: in frames the compute rasterizer takes in tile order
-    with the large frames' buckets (raster/choice.py large_tile_frame), STRIP_TILES screen tiles wide, so
-    the workgroups in flight read a few tiles' nodes (a row of the frame crosses every tile, and their
-    nodes together outgrow the GPU's cache); 0 (row by row) otherwise."""
-    if not large_tile_frame(frame.method, frame.width * frame.height):
+def composite_strip(store, width: int, edge: int) -> int:
+    """Workgroups per launch strip of the composite over a frame `width` pixels wide: where the store's nodes
+    lie together by screen tile (the compute rasterizer drew in tile order with the large frames' buckets,
+    raster/choice.py large_tile_frame), STRIP_TILES screen tiles wide, so the workgroups in flight read a
+    few tiles' nodes (a row of the frame crosses every tile, and their nodes together outgrow the GPU's
+    cache); 0 (row by row) otherwise."""
+    if store is None or not store.nodes_by_tile:
         return 0
-    return max(1, -(-(STRIP_TILES * (frame.width >> ORDER_TILE_BITS)) // edge))
+    return max(1, -(-(STRIP_TILES * (width >> ORDER_TILE_BITS)) // edge))
 
 
 @register("pass")
@@ -119,7 +119,7 @@ class CompositePass(FullscreenPass):
             },
             scale=frame.supersample,  # an invocation per rendered pixel
             edge=edge,
-            strip=composite_strip(frame, edge),
+            strip=composite_strip(store, frame.width, edge),
         )
         if store is not None:
             store.after_composite(frame)

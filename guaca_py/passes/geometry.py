@@ -90,11 +90,13 @@ class GeometryPass(Pass):
         frame.stats.memory("gbuffer", frame.pixel_count * (3 * 8 + 4) * self._samples)
         method = frame.method
         has_transparency = bool(frame.transparent_draws)
-        frame.resources["transparent"] = TransparentStore(method) if has_transparency else None
+        store = TransparentStore(method) if has_transparency else None
+        frame.resources["transparent"] = store
         if has_transparency and not method.geometry_in_composite:
             method.prepare(frame)
             method.render_transparent(frame)
             self.ctx.memory_barrier()
+            store.nodes_by_tile = frame.raster.nodes_by_tile(frame)
         elif not has_transparency:
             frame.stats["fragments"] = {"stored": 0}
         self.ctx.depth_func = "<"

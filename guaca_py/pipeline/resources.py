@@ -104,10 +104,13 @@ class TransparentStore:
     the composite, once the lights are culled (`draws_in_composite`).
     """
 
-    __slots__ = ("_method",)
+    __slots__ = ("_method", "nodes_by_tile")
 
     def __init__(self, method):
         self._method = method
+        # whether a screen tile's fragments lie together in storage (set by the geometry pass from
+        # what the rasterizers did): the composite then reads the frame tile strip by tile strip
+        self.nodes_by_tile = False
 
     @property
     def method_id(self) -> str:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ..errors import ConfigError
 from ..pipeline.device import Device
-from .choice import auto_choice, auto_rule, compute_kernels_draw, mean_projected_area
+from .choice import auto_choice, auto_rule, compute_kernels_draw, large_tile_frame, mean_projected_area
 from .compute_raster import ComputeRasterizer
 from .hardware import HardwareRasterizer
 
@@ -17,6 +17,7 @@ class RasterRouter:
         self.hardware = HardwareRasterizer(device)
         self._compute: ComputeRasterizer | None = None
         self._stats_of = None  # the frame (and pass) whose stats the draws add to
+        self._by_tile = False  # whether that frame's compute draws allocated their nodes tile by tile
 
     @property
     def compute(self) -> ComputeRasterizer:
@@ -59,6 +60,7 @@ class RasterRouter:
         if self._stats_of is not frame:  # first draw of this frame's pass (a re-render starts afresh)
             frame.stats["raster"] = {"setting": setting}
             self._stats_of = frame
+            self._by_tile = False
         info = frame.stats["raster"]
         if setting == "auto":
             info["rule"] = auto_rule()
@@ -72,8 +74,14 @@ class RasterRouter:
         info["hardware_draws"] = info.get("hardware_draws", 0) + len(hardware)
         if compute:
             self.compute.draw(frame, compute, uniforms, per_program)
+            self._by_tile = self._by_tile or large_tile_frame(frame.method, frame.pixel_count)
         if hardware:
             self.hardware.draw(frame, hardware, transparent=True, uniforms=uniforms, per_program=per_program)
+
+    def nodes_by_tile(self, frame) -> bool:
+        """Whether the compute rasterizer drew part of `frame` in tile order with the large frames' buckets, so
+        a screen tile's nodes lie together in the pool (the composite then reads the frame in strips)."""
+        return self._stats_of is frame and self._by_tile
 
     def finish(self, frame) -> bool:
         """The compute rasterizer's totals and memory; True asks for the frame again (its storage grew)."""
