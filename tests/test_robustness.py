@@ -556,6 +556,12 @@ def test_auto_regrowth_sizes_to_the_need(renderer_factory):
     assert fr["overflow"] == 0 and frame.stats["regrown"] >= 1
     # at most the 4x growth step above the need; it was 15x (a node for every fragment of the stack)
     assert mem["abuffer_pool"] <= 4 * mem["abuffer_pool_used"]
+    # the next frames hold what the scene needs: at most 1.2x the nodes stored (+ the 1024 slack)
+    for _ in range(2):
+        steady = r.render(load_scene_text(scene_text(stack(300, back_to_front=False))), 64, 64)
+    mem, fr = steady.stats["memory"], steady.stats["fragments"]
+    assert fr["overflow"] == 0 and steady.stats["regrown"] == 0
+    assert mem["abuffer_pool"] <= (1.2 * fr["stored"] + 1025) * mem["abuffer_node_bytes"]
 
 
 # ---------------------------------------------------------------------------- methods above one 64x64 tile

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import moderngl
 
 from ..gpu_counters import CounterBlock
+from ..growth import idles, with_margin
 from ..limits import pool_node_limit
 from ..pipeline.settings import Setting, auto_or_positive_mb, non_negative, positive
 from ..raster.choice import compute_kernels_draw
@@ -263,17 +264,15 @@ class ABuffer(TransparencyMethod):
         grow = self.capacity < self.max_capacity(self._pixels)
         redraws = frame.stats.get("regrown", 0)  # re-draws of this frame so far (pipeline/retry.py)
         if c["overflow"] and auto and late:
-            self.capacity_request(int(requested * 1.15) + 1024)  # for the next frame
+            self.capacity_request(with_margin(requested))  # for the next frame
             return False
         if c["overflow"] and auto and redraws < self.settings["max_regrow"] and grow:
-            self.capacity_request(int(requested * 1.15) + 1024, last=redraws + 1 >= self.settings["max_regrow"])
+            self.capacity_request(with_margin(requested), last=redraws + 1 >= self.settings["max_regrow"])
             return True
-        target = max(1024, int((largest or 0) * 1.15) + 1024)
-        if auto and largest is not None and not c["overflow"] and target * 3 < self.capacity * 2:
-            # hold what the scene needs: shrink for the next frame once a third of the pool idles
-            # (growth adds 15%, so a steady scene does not oscillate); with several views, what
-            # the largest of them needs (methods/shared_pool.py)
-            self.capacity_request(target)
+        if auto and largest is not None and not c["overflow"] and idles(self.capacity, largest):
+            # hold what the scene needs (growth.py); with several views, what the largest of them
+            # needs (methods/shared_pool.py)
+            self.capacity_request(with_margin(largest))
         return False
 
     def after_composite(self, frame) -> None:

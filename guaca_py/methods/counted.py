@@ -17,6 +17,7 @@ import moderngl
 import numpy as np
 
 from ..gpu_counters import CounterBlock, StagedReader
+from ..growth import idles, with_margin
 from ..pipeline.settings import Setting, auto_or_positive_mb, non_negative, positive
 from ..prefix_sum import GpuFill, PrefixSum, dispatch_grid
 from ..registry import register
@@ -352,7 +353,7 @@ class CountedStorage(TransparencyMethod):
             # bound and take the upper one on the last re-render max_regrow allows.
             last = regrown + 1 >= self.settings["max_regrow"]
             need = (requested if last else used + math.ceil(c["overflow"] / self.page)) + margin
-            self._want = min(limit, int(need * 1.15) + 1024)
+            self._want = min(limit, with_margin(need))
             self._warn(
                 frame,
                 f"paged_ll: pool of {self.capacity - 1} pages overflowed by {c['overflow']} "
@@ -368,11 +369,10 @@ class CountedStorage(TransparencyMethod):
             )
         if c["guard"]:
             self._warn(frame, f"{c['guard']} paged_ll insertions hit max_steps and were dropped")
-        target = max(1024, int((largest or 0) * 1.15) + 1024)
-        if auto and largest is not None and not c["overflow"] and self.capacity > 2 * target:
-            # shrink for the next frame (this frame still reads the current pool); with several
-            # views, to what the largest of them used (methods/shared_pool.py)
-            self._want = target
+        if auto and largest is not None and not c["overflow"] and idles(self.capacity, largest):
+            # shrink for the next frame (this frame still reads the current pool; growth.py); with
+            # several views, to what the largest of them used (methods/shared_pool.py)
+            self._want = with_margin(largest)
         return False
 
     def _page_memory(self) -> dict:

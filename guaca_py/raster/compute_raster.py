@@ -35,6 +35,7 @@ from .. import env
 from ..errors import ConfigError
 from ..gpu_counters import CounterBlock
 from ..gpu_timer import Timestamps
+from ..growth import with_margin
 from ..limits import require_bytes
 from ..pipeline.device import Device
 from ..shaders import set_uniform, set_uniforms
@@ -503,11 +504,11 @@ class ComputeRasterizer:
     def _grow(self, c: dict) -> None:
         """Ask the next frame's buffers for room for what the counts `c` show was dropped."""
         if c["large_dropped"]:
-            self._want["large"] = int(c["large_peak"] * 1.15) + 1024
+            self._want["large"] = with_margin(c["large_peak"])
         if c["jobs_dropped"]:
             # a larger queue lets more triangles through to binning: leave room for their jobs too
             scale = 1.0 if not c["large_dropped"] else c["large_peak"] / max(1, self.large_capacity)
-            self._want["jobs"] = int(c["jobs_peak"] * scale * 1.15) + 4096
+            self._want["jobs"] = with_margin(c["jobs_peak"] * scale, slack=4096)
 
     def memory(self, large_peak: int = 0, jobs_peak: int = 0) -> dict:
         """Bytes of the rasterizer's buffers, allocated and used by the busiest draw."""

@@ -183,9 +183,9 @@ def test_paged_ll_grows_its_pool_and_reports_pages(renderer_factory):
     again = r.render(scene, SIZE, SIZE)  # the pool shrinks towards the need on the next frames
     again = r.render(scene, SIZE, SIZE)
     assert again.stats["regrown"] == 0
-    assert again.stats["memory"]["counted_pages"] <= 2 * (again.stats["fragments"]["pages_used"] * 1.15 + 1024) * (
-        3 * NODE_BYTES + 4
-    )
+    fr = again.stats["fragments"]
+    need = fr["pages_used"] + fr["pages_wasted"]  # pages lost to races are kept as margin (methods/counted.py)
+    assert again.stats["memory"]["counted_pages"] <= (need * 1.2 + 1025) * (3 * NODE_BYTES + 4)
 
 
 @pytest.mark.parametrize("method", METHODS)
