@@ -658,3 +658,23 @@ def test_compute_raster_buffers_follow_the_storage_rule(renderer_factory, monkey
     with pytest.raises(LimitError) as err:
         r.render(scene, 16, 16)  # the frame's own targets fit the cap
     assert "transparency.raster" in str(err.value) and "raster: hardware" in str(err.value)
+
+
+@pytest.mark.parametrize("method", ["presort_lf_et", "presort_lf_merge2_et", "presort_cs_et"])
+@pytest.mark.parametrize("raster", ["hardware", "compute"])
+def test_the_fragment_that_saturates_its_pixel_culls_what_lies_behind(renderer_factory, raster, method):
+    """Eight layers of alpha 0.9 near to far: the layer that saturates a pixel moves, once stored, the pixel's
+    saturation depth up to itself; the layers behind are culled before insertion, not walked and refused
+    (the first of them was, one a pixel, before a stored fragment could saturate)."""
+    from guaca_py.scene.loader import load_scene_text
+
+    r = renderer_factory("exact", method=method, method_overrides={"raster": raster})
+    text = scene_text(stack(8, back_to_front=False, alpha=0.9))
+    frame = r.render(load_scene_text(text), 64, 64)
+    fr, pixels = frame.stats["fragments"], 64 * 64
+    assert fr["overflow"] == 0 and fr["stored"] + fr["et_dropped"] + fr["et_culled"] == 8 * pixels
+    assert fr["stored"] < 8 * pixels  # early termination left layers out
+    assert fr["et_dropped"] <= pixels // 20  # was one a pixel
+    # the image is the front layers' composite, as without early termination
+    full = renderer_factory("exact", method="presort_lf", method_overrides={"raster": raster})
+    assert np.abs(frame.image.astype(int) - full.render(load_scene_text(text), 64, 64).image).max() <= 1
