@@ -263,20 +263,31 @@ BROKEN_PIPE_STATUS = 141
 INTERRUPTED_STATUS = 130
 
 
-#: where import's own code runs; its lock cleanup is a weakref callback, which swallows an exception
+#: where import's own code runs: a module being imported runs in a frame above one of these
 _IMPORT_MACHINERY = ("<frozen importlib._bootstrap>", "<frozen importlib._bootstrap_external>")
-#: how long a Ctrl-C that landed in import's machinery waits to be raised again, outside it
+#: how long a Ctrl-C that landed in an import waits to be raised again, after it
 _CTRL_C_RETRY_S = 0.002
 
 
-def _ctrl_c(signum: int, frame) -> None:
-    """Raise KeyboardInterrupt, except inside import's machinery: there, raise it again a moment later.
+def _importing(frame) -> bool:
+    """Whether `frame` runs inside an import (import's machinery, or a module's code that it runs)."""
+    while frame is not None:
+        if frame.f_code.co_filename in _IMPORT_MACHINERY:
+            return True
+        frame = frame.f_back
+    return False
 
-    A lazy import drops its module lock through a weakref callback; an exception raised in a
-    callback cannot propagate, so Python prints it as "Exception ignored" and the command would go
-    on as if Ctrl-C had not been pressed.
+
+def _ctrl_c(signum: int, frame) -> None:
+    """Raise KeyboardInterrupt, except during an import: then raise it again a moment later, after it.
+
+    An exception raised inside an import does not always reach the command: a lazy import drops
+    its module lock through a weakref callback, which cannot propagate it (Python prints
+    "Exception ignored" and goes on as if Ctrl-C had not been pressed), and some libraries guard
+    their optional imports with `except BaseException`, keeping the interrupt as a broken module
+    (trimesh: a TypeError, with a traceback, a moment later).
     """
-    if frame is not None and frame.f_code.co_filename in _IMPORT_MACHINERY:
+    if _importing(frame):
         signal.setitimer(signal.ITIMER_REAL, _CTRL_C_RETRY_S)
         return
     raise KeyboardInterrupt
