@@ -94,7 +94,6 @@ class ABuffer(TransparencyMethod):
         self.node_bytes = NODE_PAYLOAD_BYTES + self.link_bytes
         self._links = self._nodes = self._counters = self._cull = None
         self._pixels = 0
-        self._cull_samples = 1  # layers of the saturation depth: one a sample
         self.capacity = 0  # nodes in the pool, node 0 included
         self._want = 0  # pool size requested for the next prepare()
         self._views_need = ViewsNeed()  # the views of one render_views() call share the pool
@@ -149,18 +148,13 @@ class ABuffer(TransparencyMethod):
 
     def _alloc(self, ctx, pixels: int, capacity: int, size) -> None:
         capacity = min(capacity, self.max_capacity(pixels))
-        samples = self.aa_samples
-        if self._links is None or (self._pixels, self.capacity, self._cull_samples) != (pixels, capacity, samples):
+        if self._links is None or self._pixels != pixels or self.capacity != capacity:
             self.release()
-            self._pixels, self.capacity, self._cull_samples = pixels, capacity, samples
+            self._pixels, self.capacity = pixels, capacity
             self._links = ctx.buffer(reserve=(pixels * (1 + self.extra_slots) + capacity) * self.link_bytes)
             self._nodes = ctx.buffer(reserve=capacity * NODE_PAYLOAD_BYTES)
             self._counters = CounterBlock(ctx, self.counters)
-            # the saturation depth, per sample with coverage (abuffer/submit.glsl.j2)
-            if samples > 1:
-                self._cull = ctx.texture_array((*size, samples), 1, dtype="u4")
-            else:
-                self._cull = ctx.texture(size, 1, dtype="u4")
+            self._cull = ctx.texture(size, 1, dtype="u4")
 
     def prepare(self, frame) -> None:
         """Size the pool, clear list heads, counters and the saturation depth."""
@@ -173,7 +167,7 @@ class ABuffer(TransparencyMethod):
         self._alloc(frame.ctx, frame.pixel_count, cap, (frame.width, frame.height))
         self._counters.reset(alloc=1)  # node 0 is the null link
         self._counts = None
-        clear = frame.programs.compute("abuffer/clear.comp.j2", cull_samples=self._cull_samples)
+        clear = frame.programs.compute("abuffer/clear.comp.j2")
         self._links.bind_to_storage_buffer(Buffer.ABUFFER_LINKS)
         self._cull.bind_to_image(Image.CULL_DEPTH, read=False, write=True)
         set_uniforms(
@@ -391,7 +385,7 @@ class ABuffer(TransparencyMethod):
             "abuffer_heads": self._pixels * self.link_bytes,
             "abuffer_pool": self.capacity * self.node_bytes,
             "abuffer_pool_used": (used + 1) * self.node_bytes,
-            "abuffer_cull_depth": self._pixels * 4 * self._cull_samples,
+            "abuffer_cull_depth": self._pixels * 4,
             "abuffer_node_bytes": self.node_bytes,  # coverage masks ride in free payload bits: same size
         }
         if self.kind.insertion == "two_lists":
