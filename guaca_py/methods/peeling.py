@@ -423,6 +423,7 @@ class Peeling(TransparencyMethod):
             "ord_formats": [self._image_format(n) for n in ordered],
             "ord_names": ordered,  # GUA_ORD_<NAME>: each texture's slot in peeling/ordered.glsl.j2
             "fragment_interlock": self.order == "interlock" and bool(ordered),
+            "peel_shades": PHASES[self._phase].shades,
         }
         if PHASES[self._phase].shades:
             v.update(self._shading)
