@@ -48,6 +48,7 @@ FIELD = (1, 4, 16, 64)
 RASTERS = ("auto", "hardware")
 FIRST_METHOD = "presort_lf_et"
 STEREO_TOLERANCE = 0.10  # a stereo pair's ns per stored fragment within 10% of one frame of both views
+POOL_PER_STORED_MAX = 1.2  # a pool's bytes over its stored nodes' after a steady frame (issue 25's memory line)
 _OWN = {"restore_host_state": False}  # the benchmark's own context: no host state to keep
 
 
@@ -290,6 +291,15 @@ def _line(row: dict) -> str:
     )
 
 
+def pool_per_stored(row: dict) -> float | None:
+    """A row's pool bytes over the bytes of the nodes it stored; a call of several views shares one pool, which
+    holds one view's nodes at a time: over the mean view's."""
+    pool, node = row.get("pool_bytes"), row.get("bytes_per_node")
+    if not pool or not node or not row.get("stored"):
+        return None
+    return pool / (row["stored"] / row.get("views", 1) * node)
+
+
 def _cells(row: dict, top: float | None) -> list[str]:
     """The table cells after the row's own columns: times, fragments, pool, drops, clock, note."""
     if "skipped" in row:
@@ -298,7 +308,10 @@ def _cells(row: dict, top: float | None) -> list[str]:
     other = sum(v for k, v in p.items() if k not in ("geometry", "light_culling", "composite"))
     drew = ", ".join(f"{n} {k}" for k, n in row["drew"].items() if n) or "—"
     ns = row["ns_per_stored"]
+    ratio = pool_per_stored(row)
     pool = f"{row['pool_bytes'] / 2**20:.1f} ({row['bytes_per_node']} B)" if row.get("pool_bytes") else "—"
+    if ratio is not None:
+        pool += f", {ratio:.2f}×"
     clock = row["clock"]["sm_clock_mhz_median"] if row.get("clock") else "—"
     if below_max_clock(row.get("clock"), top):
         clock = f"{clock} (under max)"
@@ -323,7 +336,7 @@ def _cells(row: dict, top: float | None) -> list[str]:
 
 COLUMNS = (
     "drew | loop wall ms | GPU ms: geometry / light culling / composite / other | stored | ns / stored "
-    "| pool MiB (per node) | overflow / drops | SM MHz | note"
+    "| pool MiB (per node), ÷ stored | overflow / drops | SM MHz | note"
 )
 
 
@@ -355,7 +368,18 @@ def markdown(rec: dict) -> str:
         lines.append("")
         if part == "stereo":
             lines += stereo_lines(these, top)
+    lines += memory_lines(rows)
     return "\n".join(lines) + "\n"
+
+
+def memory_lines(rows: list[dict]) -> list[str]:
+    """The rows whose pool holds more than POOL_PER_STORED_MAX times the bytes of the nodes it stored."""
+    over = [(r, pool_per_stored(r)) for r in rows if (pool_per_stored(r) or 0) > POOL_PER_STORED_MAX]
+    lines = [f"Pools over {POOL_PER_STORED_MAX}× the bytes of the nodes they stored (÷ stored):", ""]
+    for r, ratio in over:
+        what = f"{r['count']} copies" if r["part"] == "field" else r["scene"]
+        lines.append(f"- {what}, {r['width']}x{r['height']}, {r['method']} ({r['raster']}): {ratio:.2f}×")
+    return lines + (["- none"] if not over else []) + [""]
 
 
 def stereo_ratios(rows: list[dict]) -> list[tuple[str, str, float | None]]:

@@ -67,6 +67,18 @@ def test_every_part_is_measured_and_written(gl_context, scenes, tmp_path):
     md = (tmp_path / "scaling.md").read_text()
     assert "Command: `python benchmarks/paper_table.py scaling --scenes" in md
     assert "## A stereo pair" in md and "Pair over one frame" in md and "## A field" in md
+    assert "Pools over 1.2× the bytes" in md
+
+
+def test_pool_per_stored_counts_one_view_of_a_shared_pool():
+    one = {"pool_bytes": 1200, "bytes_per_node": 40, "stored": 25, "views": 1}
+    pair = {**one, "stored": 50, "views": 2}  # two views of 25 nodes each, one pool
+    assert scaling.pool_per_stored(one) == pytest.approx(1.2) == scaling.pool_per_stored(pair)
+    assert scaling.pool_per_stored({**one, "stored": 0}) is None
+    rows = [{**one, "part": "size", "scene": "s", "width": 8, "height": 8, "method": "m", "raster": "auto"}]
+    assert scaling.memory_lines(rows)[2] == "- none"
+    rows[0]["pool_bytes"] = 1300
+    assert scaling.memory_lines(rows)[2] == "- s, 8x8, m (auto): 1.30×"
 
 
 def test_rows_past_the_budget_are_recorded_as_skipped(gl_context, scenes, tmp_path):
