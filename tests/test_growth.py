@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from guaca_py.growth import MARGIN, SHRINK_ABOVE, idles, with_margin
@@ -23,5 +24,19 @@ def test_a_buffer_above_the_shrink_line_shrinks_to_at_most_1_2x(need):
     assert not idles(int(need * SHRINK_ABOVE) + 1024, need)  # on the line: kept
 
 
-def test_the_margin_lies_below_the_shrink_line():
-    assert 1.0 < MARGIN < SHRINK_ABOVE <= 1.2
+def test_a_steady_scene_settles_within_1_2x_and_stays_there():
+    """The rule as the A-buffer applies it, frame by frame: grow to with_margin(need) on overflow, shrink to it once
+    idles(). A pool grown 4x by early termination's first guess, then a need that wobbles +-4 % around 2M nodes:
+    one shrink, no overflow, no further resize, and never more than 1.2x the need (+ the slack) after it."""
+    rng = np.random.default_rng(3)
+    needs = 2_000_000 * (1 + 0.04 * rng.uniform(-1, 1, 200))
+    capacity, resizes, overflows = 8_000_000, 0, 0
+    for frame, need in enumerate(needs):
+        if need > capacity:
+            overflows += 1
+            capacity, resizes = with_margin(need), resizes + 1
+        elif idles(capacity, need):
+            capacity, resizes = with_margin(need), resizes + 1
+        if frame:
+            assert capacity <= SHRINK_ABOVE * need + 1024, (frame, capacity, need)
+    assert (resizes, overflows) == (1, 0)
