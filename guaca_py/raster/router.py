@@ -17,7 +17,7 @@ class RasterRouter:
         self.hardware = HardwareRasterizer(device)
         self._compute: ComputeRasterizer | None = None
         self._stats_of = None  # the frame (and pass) whose stats the draws add to
-        self._by_tile = False  # whether that frame's compute draws allocated their nodes tile by tile
+        self._drew_compute = False  # whether that frame drew through the compute rasterizer
 
     @property
     def compute(self) -> ComputeRasterizer:
@@ -60,7 +60,7 @@ class RasterRouter:
         if self._stats_of is not frame:  # first draw of this frame's pass (a re-render starts afresh)
             frame.stats["raster"] = {"setting": setting}
             self._stats_of = frame
-            self._by_tile = False
+            self._drew_compute = False
         info = frame.stats["raster"]
         if setting == "auto":
             info["rule"] = auto_rule()
@@ -74,14 +74,15 @@ class RasterRouter:
         info["hardware_draws"] = info.get("hardware_draws", 0) + len(hardware)
         if compute:
             self.compute.draw(frame, compute, uniforms, per_program)
-            self._by_tile = self._by_tile or large_tile_frame(frame.method, frame.pixel_count)
+            self._drew_compute = True
         if hardware:
             self.hardware.draw(frame, hardware, transparent=True, uniforms=uniforms, per_program=per_program)
 
     def nodes_by_tile(self, frame) -> bool:
         """Whether the compute rasterizer drew part of `frame` in tile order with the large frames' buckets, so
         a screen tile's nodes lie together in the pool (the composite then reads the frame in strips)."""
-        return self._stats_of is frame and self._by_tile
+        drew = self._stats_of is frame and self._drew_compute
+        return drew and large_tile_frame(frame.method, frame.pixel_count)
 
     def finish(self, frame) -> bool:
         """The compute rasterizer's totals and memory; True asks for the frame again (its storage grew)."""

@@ -37,7 +37,7 @@ def test_the_router_says_whether_a_frame_s_nodes_lie_by_tile(monkeypatch, pixels
     from guaca_py.raster.router import RasterRouter
 
     router = RasterRouter.__new__(RasterRouter)  # no device: choose() and the rasterizers are stood in for
-    router._stats_of, router._by_tile, router._compute = None, False, SimpleNamespace(draw=lambda *a: None)
+    router._stats_of, router._drew_compute, router._compute = None, False, SimpleNamespace(draw=lambda *a: None)
     router.hardware = SimpleNamespace(draw=lambda *a, **k: None)
     monkeypatch.setattr(router, "choose", lambda frame, d: ("compute" if compute else "hardware", "test"))
     method = SimpleNamespace(settings={"raster": "auto"}, raster_order=lambda px: order)
