@@ -374,7 +374,7 @@ def markdown(rec: dict) -> str:
 
 def memory_lines(rows: list[dict]) -> list[str]:
     """The rows whose pool holds more than POOL_PER_STORED_MAX times the bytes of the nodes it stored."""
-    over = [(r, pool_per_stored(r)) for r in rows if (pool_per_stored(r) or 0) > POOL_PER_STORED_MAX]
+    over = [(r, ratio) for r in rows if (ratio := pool_per_stored(r) or 0) > POOL_PER_STORED_MAX]
     lines = [f"Pools over {POOL_PER_STORED_MAX}× the bytes of the nodes they stored (÷ stored):", ""]
     for r, ratio in over:
         what = f"{r['count']} copies" if r["part"] == "field" else r["scene"]

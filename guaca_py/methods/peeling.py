@@ -417,15 +417,16 @@ class Peeling(TransparencyMethod):
         if self._phase == "composite":
             return {"peel_phase": "composite", "peel_back": self.has_back}
         ordered = self.phase_slots(self._phase)
+        shades = PHASES[self._phase].shades
         v = {
             "peel_phase": self._phase,
             "peel_order": self.order or "none",
             "ord_formats": [self._image_format(n) for n in ordered],
             "ord_names": ordered,  # GUA_ORD_<NAME>: each texture's slot in peeling/ordered.glsl.j2
             "fragment_interlock": self.order == "interlock" and bool(ordered),
-            "peel_shades": PHASES[self._phase].shades,
+            "peel_shades": shades,
         }
-        if PHASES[self._phase].shades:
+        if shades:
             v.update(self._shading)
         v.update(self.step_vars())
         return v
