@@ -246,8 +246,40 @@ class Node:
             yield from child._walk(world)
 
 
+_NUMBERS = (int, float)
+
+
+def _plain_key(values: tuple) -> tuple | None:
+    """`values` where each is a number, a string or a tuple of numbers (compared by value), else None."""
+    for v in values:
+        t = type(v)
+        if t is tuple:
+            if not all(type(x) in _NUMBERS for x in v):
+                return None
+        elif t not in _NUMBERS and t is not str:
+            return None
+    return values
+
+
+class _ValueMemo:
+    """Values derived from a data class's fields (a check's pass, matrices), kept while its `_VALUE_FIELDS` hold
+    the same plain values: a renderer checks its camera and lights every frame (the classes are mutable) at
+    ~30 us a look. Fields holding arrays, lists or other objects get an empty memo: checked every time."""
+
+    _VALUE_FIELDS: tuple[str, ...] = ()
+
+    def _memo(self) -> dict:
+        key = _plain_key(tuple(getattr(self, f) for f in self._VALUE_FIELDS))
+        if key is None:
+            return {}
+        memo = self.__dict__.get("_gua_memo")
+        if memo is None or memo["key"] != key:
+            memo = self.__dict__["_gua_memo"] = {"key": key}
+        return memo
+
+
 @dataclass
-class Camera:
+class Camera(_ValueMemo):
     """Right-handed look-at camera; fov_y is the vertical field of view in degrees."""
 
     position: tuple[float, float, float] = (0.0, 1.0, 5.0)
@@ -257,9 +289,21 @@ class Camera:
     near: float = 0.1
     far: float = 100.0
 
+    _VALUE_FIELDS = ("position", "target", "up", "fov_y", "near", "far")
+
     def check(self, where: str = "camera") -> None:
         """Refuse a camera no frame can be made from (ConfigError naming `where`, the field and what to do)."""
+        self._checked_memo(where)
 
+    def _checked_memo(self, where: str = "camera") -> dict:
+        """The camera's memo (_ValueMemo) after a check; the check is skipped where the same plain values passed."""
+        memo = self._memo()
+        if not memo.get("checked"):  # a frame checks its camera several times, a frame loop every frame
+            self._check(where)
+            memo["checked"] = True
+        return memo
+
+    def _check(self, where: str) -> None:
         def fail(key: str, reason: str, hint: str) -> ConfigError:
             return ConfigError(reason, key=f"{where}.{key}", hint=hint)
 
@@ -292,18 +336,25 @@ class Camera:
 
     def view_matrix(self) -> np.ndarray:
         """World-to-view 4x4 float64 matrix (camera looks down -Z)."""
-        self.check()
-        # up only gives a direction: scaled to unit length first, so 1e300 does not overflow the cross products
-        up = _scaled_unit(_vector3(self.up))
-        eye, target, up = (glm.dvec3(*v) for v in (self.position, self.target, up))
-        return np.array(glm.lookAtRH(eye, target, up))
+        memo = self._checked_memo()
+        m = memo.get("view")
+        if m is None:
+            # up only gives a direction: scaled to unit length first, so 1e300 does not overflow the cross products
+            up = _scaled_unit(_vector3(self.up))
+            eye, target, up = (glm.dvec3(*v) for v in (self.position, self.target, up))
+            m = memo["view"] = np.array(glm.lookAtRH(eye, target, up))
+        return m.copy()  # the caller's to change
 
     def projection_matrix(self, aspect: float) -> np.ndarray:
         """OpenGL perspective 4x4 matrix (clip z in [-w, w]) as float64; its values are float32, what GL receives."""
-        self.check()
-        # PyGLM builds projections in single precision only; the GPU reads them so anyway
-        m = glm.perspectiveRH_NO(math.radians(self.fov_y), float(aspect), float(self.near), float(self.far))
-        return np.array(m, dtype=np.float64)
+        memo = self._checked_memo()
+        key = ("projection", float(aspect))
+        m = memo.get(key)
+        if m is None:
+            # PyGLM builds projections in single precision only; the GPU reads them so anyway
+            m = glm.perspectiveRH_NO(math.radians(self.fov_y), float(aspect), float(self.near), float(self.far))
+            m = memo[key] = np.array(m, dtype=np.float64)
+        return m.copy()
 
 
 LIGHT_TYPES = ("point", "spot", "directional", "ambient")
@@ -318,7 +369,7 @@ MAX_CONE_DEG = 89.9
 
 
 @dataclass
-class Light:
+class Light(_ValueMemo):
     """A point, spot, directional or ambient light. Color is linear RGB; intensity scales it.
 
     Point/spot lights have a finite range `radius` with a smooth falloff to zero there;
@@ -337,6 +388,17 @@ class Light:
     inner_angle_deg: float = 20.0
     outer_angle_deg: float = 30.0
 
+    _VALUE_FIELDS = (
+        "type",
+        "position",
+        "direction",
+        "color",
+        "intensity",
+        "radius",
+        "inner_angle_deg",
+        "outer_angle_deg",
+    )
+
     def __post_init__(self):
         self.check()
 
@@ -344,9 +406,24 @@ class Light:
         """Refuse NaN, infinite or overflowing values and a direction of length zero (ConfigError naming `where`).
 
         Colour times intensity is bounded by MAX_RADIANCE: beyond it the shading's float32
-        arithmetic overflows and lit surfaces turn black.
+        arithmetic overflows and lit surfaces turn black. Skipped where the same plain values passed before.
         """
+        memo = self._memo()
+        if not memo.get("checked"):
+            self._check(where)
+            memo["checked"] = True
 
+    def checked_before(self) -> bool:
+        """Whether the light holds plain values that passed check() before (nothing to look at again)."""
+        return bool(self._memo().get("checked"))
+
+    def mark_checked(self) -> None:
+        """Note that the light's current values passed a check made elsewhere (the scene's vectorised one)."""
+        memo = self._memo()
+        if memo:
+            memo["checked"] = True
+
+    def _check(self, where: str) -> None:
         def fail(key: str, reason: str, hint: str) -> ConfigError:
             return ConfigError(reason, key=f"{where}.{key}", hint=hint)
 

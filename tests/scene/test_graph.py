@@ -43,3 +43,40 @@ def test_camera_matrices_through_pyglm_match_the_look_at_and_perspective_formula
     n, fa = 0.2, 40.0
     expected = [[t / 1.5, 0, 0, 0], [0, t, 0, 0], [0, 0, (fa + n) / (n - fa), 2 * fa * n / (n - fa)], [0, 0, -1, 0]]
     np.testing.assert_allclose(p, expected, rtol=1e-6)  # single precision, what GL receives
+
+
+def test_a_camera_changed_after_a_check_is_checked_and_drawn_with_its_new_values():
+    from guaca_py.errors import ConfigError
+
+    cam = Camera(position=(0.0, 1.0, 5.0))
+    view = cam.view_matrix()
+    view[0, 0] = 99.0  # the caller's copy: the next frame's matrix is not changed by it
+    assert cam.view_matrix()[0, 0] != 99.0
+    cam.position = (0.0, 1.0, 9.0)
+    assert cam.view_matrix()[2, 3] == pytest.approx(-np.linalg.norm((0.0, 1.0, 9.0)))
+    cam.fov_y = 90.0
+    assert cam.projection_matrix(1.0)[1, 1] == pytest.approx(1.0)
+    cam.target = cam.position  # passed before, refused now: the memo holds only values that passed
+    with pytest.raises(ConfigError, match="differ from the camera position"):
+        cam.view_matrix()
+    cam.position = np.array([0.0, 1.0, 5.0])  # not plain values: checked every time, still refused
+    cam.target = np.array([0.0, 1.0, 5.0])
+    with pytest.raises(ConfigError, match="differ from the camera position"):
+        cam.check()
+
+
+@pytest.mark.parametrize("count", [2, 100])  # below and above FEW_LIGHTS: per-light memo and vectorised test
+def test_a_light_changed_after_a_scene_check_is_refused_and_named(count):
+    from guaca_py.errors import ConfigError
+    from guaca_py.scene import Light, Scene
+
+    lights = [Light(position=(float(i), 1.0, 0.0)) for i in range(count)]
+    scene = Scene(camera=Camera(), lights=lights, nodes=[])
+    scene.check()
+    scene.check()
+    lights[-1].intensity = float("nan")
+    with pytest.raises(ConfigError) as err:
+        scene.check()
+    assert err.value.key == f"lights[{count - 1}].intensity"
+    lights[-1].intensity = 2.0
+    scene.check()
