@@ -277,6 +277,24 @@ class _ValueMemo:
             memo = self.__dict__["_gua_memo"] = {"key": key}
         return memo
 
+    def _checked_memo(self, where: str) -> dict:
+        """The memo after the class's `_check(where)`, skipped where the same plain values passed it before."""
+        memo = self._memo()
+        if not memo.get("checked"):
+            self._check(where)
+            memo["checked"] = True
+        return memo
+
+    def checked_before(self) -> bool:
+        """Whether the fields hold plain values that passed the check before (nothing to look at again)."""
+        return bool(self._memo().get("checked"))
+
+    def mark_checked(self) -> None:
+        """Note that the current values passed a check made elsewhere (a scene's vectorised test of its lights)."""
+        memo = self._memo()
+        if memo:
+            memo["checked"] = True
+
 
 @dataclass
 class Camera(_ValueMemo):
@@ -293,15 +311,7 @@ class Camera(_ValueMemo):
 
     def check(self, where: str = "camera") -> None:
         """Refuse a camera no frame can be made from (ConfigError naming `where`, the field and what to do)."""
-        self._checked_memo(where)
-
-    def _checked_memo(self, where: str = "camera") -> dict:
-        """The camera's memo (_ValueMemo) after a check; the check is skipped where the same plain values passed."""
-        memo = self._memo()
-        if not memo.get("checked"):  # a frame checks its camera several times, a frame loop every frame
-            self._check(where)
-            memo["checked"] = True
-        return memo
+        self._checked_memo(where)  # a frame checks its camera several times, a frame loop every frame
 
     def _check(self, where: str) -> None:
         def fail(key: str, reason: str, hint: str) -> ConfigError:
@@ -336,7 +346,7 @@ class Camera(_ValueMemo):
 
     def view_matrix(self) -> np.ndarray:
         """World-to-view 4x4 float64 matrix (camera looks down -Z)."""
-        memo = self._checked_memo()
+        memo = self._checked_memo("camera")
         m = memo.get("view")
         if m is None:
             # up only gives a direction: scaled to unit length first, so 1e300 does not overflow the cross products
@@ -347,7 +357,7 @@ class Camera(_ValueMemo):
 
     def projection_matrix(self, aspect: float) -> np.ndarray:
         """OpenGL perspective 4x4 matrix (clip z in [-w, w]) as float64; its values are float32, what GL receives."""
-        memo = self._checked_memo()
+        memo = self._checked_memo("camera")
         key = ("projection", float(aspect))
         m = memo.get(key)
         if m is None:
@@ -408,20 +418,7 @@ class Light(_ValueMemo):
         Colour times intensity is bounded by MAX_RADIANCE: beyond it the shading's float32
         arithmetic overflows and lit surfaces turn black. Skipped where the same plain values passed before.
         """
-        memo = self._memo()
-        if not memo.get("checked"):
-            self._check(where)
-            memo["checked"] = True
-
-    def checked_before(self) -> bool:
-        """Whether the light holds plain values that passed check() before (nothing to look at again)."""
-        return bool(self._memo().get("checked"))
-
-    def mark_checked(self) -> None:
-        """Note that the light's current values passed a check made elsewhere (the scene's vectorised one)."""
-        memo = self._memo()
-        if memo:
-            memo["checked"] = True
+        self._checked_memo(where)
 
     def _check(self, where: str) -> None:
         def fail(key: str, reason: str, hint: str) -> ConfigError:
