@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from dataclasses import fields
 from functools import cached_property
 
 import moderngl
@@ -11,7 +10,6 @@ import numpy as np
 
 from ..errors import DeviceError
 from ..gpu_counters import UploadBuffer
-from ..pipeline.draw_cache import freeze
 from ..pipeline.resources import LightGrid
 from ..pipeline.settings import Setting, positive
 from ..registry import register
@@ -129,7 +127,7 @@ class LightCullingPass(Pass):
         """
         if len(lights) > _KEYED_LIGHTS:
             return light_table(lights)
-        key = tuple(tuple(freeze(getattr(l, f.name)) for f in fields(l)) for l in lights)
+        key = tuple(l.value_key() for l in lights)
         if key != self._table_key:
             self._table, self._table_key = light_table(lights), key
         return self._table

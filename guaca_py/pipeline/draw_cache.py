@@ -12,19 +12,7 @@ from __future__ import annotations
 import numpy as np
 from pyglm import glm
 
-_NUMBERS = frozenset((float, int))
-
-
-def freeze(value):
-    """A hashable stand-in for a uniform value (lists and arrays become tuples; objects stay)."""
-    kind = type(value)
-    if (kind is tuple or kind is list) and set(map(type, value)) <= _NUMBERS:
-        return tuple(value)  # plain numbers as they are: the common case, a handful of calls a node a frame
-    if isinstance(value, (list, tuple, np.ndarray)):
-        return tuple(freeze(v) for v in value)
-    if isinstance(value, (float, np.floating)):
-        return float(value)
-    return value
+from ..frozen import freeze
 
 
 class _TwoGenerations:

@@ -13,6 +13,7 @@ import numpy as np
 from pyglm import glm
 
 from ..errors import ConfigError
+from ..frozen import field_key
 from ..numeric import FLOAT32_MAX  # the largest magnitude a vertex attribute may hold: the GPU gets float32
 
 
@@ -246,39 +247,23 @@ class Node:
             yield from child._walk(world)
 
 
-_NUMBERS = (int, float)
-
-
-def _plain_key(values: tuple) -> tuple | None:
-    """`values` where each is a number, a string or a tuple of numbers (compared by value), else None."""
-    for v in values:
-        t = type(v)
-        if t is tuple:
-            if not all(type(x) in _NUMBERS for x in v):
-                return None
-        elif t not in _NUMBERS and t is not str:
-            return None
-    return values
-
-
 class _ValueMemo:
-    """Values derived from a data class's fields (a check's pass, matrices), kept while its `_VALUE_FIELDS` hold
-    the same plain values: a renderer checks its camera and lights every frame (the classes are mutable) at
-    ~30 us a look. Fields holding arrays, lists or other objects get an empty memo: checked every time."""
+    """Values derived from a data class's fields (a check's pass, matrices), kept while the fields hold the same
+    values (frozen.field_key): a renderer checks its camera and lights every frame (the classes are mutable)."""
 
-    _VALUE_FIELDS: tuple[str, ...] = ()
+    def value_key(self) -> tuple:
+        """The fields' values as a hashable key (equal keys: equal values)."""
+        return field_key(self)
 
     def _memo(self) -> dict:
-        key = _plain_key(tuple(getattr(self, f) for f in self._VALUE_FIELDS))
-        if key is None:
-            return {}
+        key = field_key(self)
         memo = self.__dict__.get("_gua_memo")
         if memo is None or memo["key"] != key:
             memo = self.__dict__["_gua_memo"] = {"key": key}
         return memo
 
     def _checked_memo(self, where: str) -> dict:
-        """The memo after the class's `_check(where)`, skipped where the same plain values passed it before."""
+        """The memo after the class's `_check(where)`, skipped where the same values passed it before."""
         memo = self._memo()
         if not memo.get("checked"):
             self._check(where)
@@ -286,14 +271,12 @@ class _ValueMemo:
         return memo
 
     def checked_before(self) -> bool:
-        """Whether the fields hold plain values that passed the check before (nothing to look at again)."""
+        """Whether the fields hold values that passed the check before (nothing to look at again)."""
         return bool(self._memo().get("checked"))
 
     def mark_checked(self) -> None:
         """Note that the current values passed a check made elsewhere (a scene's vectorised test of its lights)."""
-        memo = self._memo()
-        if memo:
-            memo["checked"] = True
+        self._memo()["checked"] = True
 
 
 @dataclass
@@ -306,8 +289,6 @@ class Camera(_ValueMemo):
     fov_y: float = 60.0
     near: float = 0.1
     far: float = 100.0
-
-    _VALUE_FIELDS = ("position", "target", "up", "fov_y", "near", "far")
 
     def check(self, where: str = "camera") -> None:
         """Refuse a camera no frame can be made from (ConfigError naming `where`, the field and what to do)."""
@@ -398,17 +379,6 @@ class Light(_ValueMemo):
     inner_angle_deg: float = 20.0
     outer_angle_deg: float = 30.0
 
-    _VALUE_FIELDS = (
-        "type",
-        "position",
-        "direction",
-        "color",
-        "intensity",
-        "radius",
-        "inner_angle_deg",
-        "outer_angle_deg",
-    )
-
     def __post_init__(self):
         self.check()
 
@@ -416,7 +386,7 @@ class Light(_ValueMemo):
         """Refuse NaN, infinite or overflowing values and a direction of length zero (ConfigError naming `where`).
 
         Colour times intensity is bounded by MAX_RADIANCE: beyond it the shading's float32
-        arithmetic overflows and lit surfaces turn black. Skipped where the same plain values passed before.
+        arithmetic overflows and lit surfaces turn black. Skipped where the same values passed before.
         """
         self._checked_memo(where)
 

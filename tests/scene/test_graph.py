@@ -59,8 +59,10 @@ def test_a_camera_changed_after_a_check_is_checked_and_drawn_with_its_new_values
     cam.target = cam.position  # passed before, refused now: the memo holds only values that passed
     with pytest.raises(ConfigError, match="differ from the camera position"):
         cam.view_matrix()
-    cam.position = np.array([0.0, 1.0, 5.0])  # not plain values: checked every time, still refused
-    cam.target = np.array([0.0, 1.0, 5.0])
+    cam.position = np.array([0.0, 1.0, 5.0])  # arrays: compared by value, so an edit in place is seen
+    cam.target = np.array([0.0, 1.0, 9.0])
+    cam.check()
+    cam.target[2] = 5.0
     with pytest.raises(ConfigError, match="differ from the camera position"):
         cam.check()
 
@@ -78,5 +80,9 @@ def test_a_light_changed_after_a_scene_check_is_refused_and_named(count):
     with pytest.raises(ConfigError) as err:
         scene.check()
     assert err.value.key == f"lights[{count - 1}].intensity"
-    lights[-1].intensity = 2.0
+    lights[-1].intensity = 1.0
     scene.check()
+    lights[-1].intensity = True  # equal to 1.0, refused where 1.0 passed: values of another type are checked
+    with pytest.raises(ConfigError) as err:
+        scene.check()
+    assert err.value.key == f"lights[{count - 1}].intensity"
