@@ -15,7 +15,7 @@ from pyglm import glm
 from ..frozen import freeze
 
 
-class _TwoGenerations:
+class TwoGenerations:
     """A dict whose entries survive while used in this frame or the previous one."""
 
     def __init__(self):
@@ -45,8 +45,8 @@ class DrawCache:
     """World matrices (with their GL bytes and normal matrices) and resolved material instances."""
 
     def __init__(self):
-        self._worlds = _TwoGenerations()
-        self._materials = _TwoGenerations()
+        self._worlds = TwoGenerations()
+        self._materials = TwoGenerations()
 
     def world(self, parent_key, parent_world: glm.dmat4 | None, transform) -> tuple:
         """(key, PyGLM world matrix, numpy world matrix, model bytes, normal-matrix bytes) of a node under its parent."""

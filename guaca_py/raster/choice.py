@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import weakref
-
 import numpy as np
 
 from ..pipeline.settings import Setting
@@ -33,8 +31,7 @@ RASTER_ORDER_SETTING = Setting(
 AUTO_MAX_MEAN_AREA_PX = 16384.0
 SAMPLE_TRIANGLES = 256  # triangles per mesh sampled for the estimate (fixed seed, cached)
 
-_shapes: dict[tuple, tuple[float, float]] = {}  # (mesh id, world, view-projection, size) -> projected_shape
-_samples: dict[int, tuple[weakref.ref, tuple]] = {}  # id(mesh) -> (weak mesh, sample): meshes may go
+SHAPES_PER_MESH = 256  # projected_shape results kept per mesh (a moving camera or node makes every key new)
 
 
 def auto_rule() -> str:
@@ -84,10 +81,11 @@ def device_rule(caps) -> str:
 
 def _sample(mesh) -> tuple[np.ndarray, np.ndarray | None]:
     """A fixed sample of the mesh's triangles: corners as homogeneous object-space points (k·3, 4) and
-    their vertex normals (k·3, 3; None for a mesh without normals), cached."""
-    hit = _samples.get(id(mesh))
-    if hit is not None and hit[0]() is mesh:
-        return hit[1]
+    their vertex normals (k·3, 3; None for a mesh without normals), kept with the mesh's arrays."""
+    return mesh.derived("raster_sample", _draw_sample)
+
+
+def _draw_sample(mesh) -> tuple[np.ndarray, np.ndarray | None]:
     idx = np.asarray(mesh.indices).reshape(-1, 3)
     if len(idx) > SAMPLE_TRIANGLES:
         idx = idx[np.random.default_rng(0).choice(len(idx), SAMPLE_TRIANGLES, replace=False)]
@@ -95,8 +93,6 @@ def _sample(mesh) -> tuple[np.ndarray, np.ndarray | None]:
     points = np.hstack([corners, np.ones((len(corners), 1))])
     normals = getattr(mesh, "normals", None)
     normals = None if normals is None else np.asarray(normals, dtype=np.float64)[idx.ravel()]
-    key = id(mesh)
-    _samples[key] = (weakref.ref(mesh, lambda _ref, key=key: _samples.pop(key, None)), (points, normals))
     return points, normals
 
 
@@ -124,8 +120,10 @@ def projected_shape(
     the length of their edge in pixels (0 for a mesh without normals): shading varies within a pixel
     where it is large. `turn=False`: the area alone (the turn reads 0), as the rasterizer's choice per draw
     needs, without the normals' work."""
-    key = (id(mesh), world.tobytes(), view_projection.tobytes(), width, height, turn)
-    hit = _shapes.get(key)
+    # kept with the mesh's arrays (MeshData.derived), so a mesh replaced or gone takes its entries along
+    shapes = mesh.derived("projected_shapes", lambda _mesh: {})
+    key = (world.tobytes(), view_projection.tobytes(), width, height, turn)
+    hit = shapes.get(key)
     if hit is not None:  # the common case: an unchanged draw and camera
         return hit
     xy, rows = _on_screen(mesh, world, view_projection, width, height)
@@ -142,9 +140,9 @@ def projected_shape(
                 angle = np.arccos(np.clip((n[:, a] * n[:, b]).sum(axis=1), -1.0, 1.0))
                 turns.append(angle / np.maximum(np.hypot(*(xy[:, b] - xy[:, a]).T), 1e-3))
             turned = float(np.median(np.max(turns, axis=0)))
-    if len(_shapes) >= 256:  # bounded: a moving camera or node makes every key new
-        _shapes.clear()
-    _shapes[key] = (area, turned)
+    if len(shapes) >= SHAPES_PER_MESH:  # bounded: a moving camera or node makes every key new
+        shapes.clear()
+    shapes[key] = (area, turned)
     return area, turned
 
 

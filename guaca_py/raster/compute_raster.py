@@ -24,9 +24,9 @@ from __future__ import annotations
 
 import functools
 import math
-import weakref
 from collections.abc import Mapping
 from types import MappingProxyType
+from typing import NamedTuple
 
 import moderngl
 import numpy as np
@@ -35,14 +35,16 @@ from .. import env
 from ..errors import ConfigError
 from ..gpu_counters import CounterBlock
 from ..gpu_timer import Timestamps
-from ..growth import with_margin
+from ..growth import idles, with_margin
 from ..limits import require_bytes
 from ..pipeline.device import Device
-from ..shaders import set_uniform, set_uniforms
+from ..pipeline.draw_cache import TwoGenerations
+from ..shaders import mat_bytes, set_uniform, set_uniforms
 from ..shaders.slots import Buffer, Texture
 from .choice import large_tile_frame
+from .draw_record import RecordLayout, head_bytes, material_bytes, record_layout
 from .material_program import apply_material, material_program
-from .material_support import compute_material
+from .material_support import ComputeMaterial, compute_material
 
 # state words of raster/state.glsl.j2, in order
 STATE_WORDS = (
@@ -106,18 +108,16 @@ _MAX_GROUPS_X = 65535  # the GL minimum of GL_MAX_COMPUTE_WORK_GROUP_COUNT; grid
 
 
 _TOO_BIG = "draw this mesh with transparency.raster: hardware, or split it (GUACA_MAX_BUFFER_MB sets the rule)"
-_corners_cache: dict[int, tuple] = {}  # id(mesh) -> (weak mesh, corners)
 
 
 def _bound_corners(mesh) -> np.ndarray:
-    """The 8 corners of the mesh's object-space bounds as homogeneous points (8, 4), computed once per mesh."""
-    hit = _corners_cache.get(id(mesh))
-    if hit is None or hit[0]() is not mesh:
-        key = id(mesh)
-        lo, hi = (np.asarray(b, dtype=np.float64) for b in mesh.bounds())
-        corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-        hit = _corners_cache[key] = (weakref.ref(mesh, lambda _ref, key=key: _corners_cache.pop(key, None)), corners)
-    return hit[1]
+    """The 8 corners of the mesh's object-space bounds as homogeneous points (8, 4), kept with its arrays."""
+    return mesh.derived("bound_corners", _corners)
+
+
+def _corners(mesh) -> np.ndarray:
+    lo, hi = (np.asarray(b, dtype=np.float64) for b in mesh.bounds())
+    return np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
 
 
 @functools.lru_cache(maxsize=8)
@@ -144,6 +144,14 @@ def _grid(items: int, group: int = _GROUP) -> tuple[int, int, int]:
     return min(groups, _MAX_GROUPS_X), math.ceil(groups / _MAX_GROUPS_X), 1
 
 
+class _Material(NamedTuple):
+    """What the rasterizer derives from a material description."""
+
+    compute: ComputeMaterial  # its visibility code for the compute host, or why it cannot run there
+    record: RecordLayout  # where its values lie in a draw's record
+    samplers: bool  # it has textures to bind per draw
+
+
 class ComputeRasterizer:
     """Draws transparent draws through compute kernels into the current method's insertion code."""
 
@@ -165,7 +173,9 @@ class ComputeRasterizer:
         self.small_area = SMALL_AREA
         self.small_fragments = SMALL_FRAGMENTS
         self.medium_area = MEDIUM_AREA
-        self._materials: dict[int, tuple] = {}  # id(material) -> (material, ComputeMaterial)
+        self._materials: dict[int, tuple] = {}  # id(material) -> (material, _Material)
+        self._records = None  # the draws' records of a call (raster/draw_record.py), rewritten each call
+        self._material_bytes = TwoGenerations()  # id(values) -> (values, their bytes in a record)
         # GUACA_RASTER_STAGES=1: GPU time per stage in stats (reading it waits for the GPU: profiling only)
         self._stages: Timestamps | None = None
         self.profile_stages(env.raster_stages())
@@ -191,20 +201,22 @@ class ComputeRasterizer:
             "raster_scan_lanes": SCAN_LANES,
         }
 
-    def _compute_material(self, mat):
+    def _material(self, mat) -> _Material:
+        """What the rasterizer derives from a material description, once per description."""
         hit = self._materials.get(id(mat))
         if hit is None or hit[0] is not mat:
-            hit = self._materials[id(mat)] = (mat, compute_material(mat))
+            samplers = any(u.type == "sampler2D" for u in mat.uniforms.values())
+            hit = self._materials[id(mat)] = (mat, _Material(compute_material(mat), record_layout(mat), samplers))
         return hit[1]
 
     def material_problem(self, draw) -> str | None:
         """Why `draw`'s material cannot run in the compute host (None: it can)."""
-        return self._compute_material(draw.material).problem
+        return self._material(draw.material).compute.problem
 
     def _programs(self, method, draw):
         """(vertex, setup, bin, fine) kernels for the draw's material and `method`, compiled once."""
         mat = draw.material
-        cm = self._compute_material(mat)
+        cm = self._material(mat).compute
         if cm.problem:
             raise ConfigError(cm.problem, mat.path, None, "transparency.raster")
         fragment = dict(
@@ -222,6 +234,7 @@ class ComputeRasterizer:
                 mat,
                 {"compute_shader": ("raster/vertex.comp.j2", "displacement", {})},
                 ", compute raster vertex",
+                record=True,
             )
         ]
         for stage in ("setup", "bin", "fine"):  # the triangle record's layout is chosen per kernel
@@ -229,7 +242,9 @@ class ComputeRasterizer:
                 "compute_shader": (f"raster/{stage}.comp.j2", "visibility", {**fragment, "raster_stage": stage})
             }
             kernels.append(
-                material_program(self.device.programs, mat, skeleton, f", compute raster {stage}", cm.sources)
+                material_program(
+                    self.device.programs, mat, skeleton, f", compute raster {stage}", cm.sources, record=True
+                )
             )
         return tuple(kernels)
 
@@ -284,11 +299,14 @@ class ComputeRasterizer:
             self._keys = self.ctx.buffer(reserve=max(1, triangles) * 4)
 
     @staticmethod
-    def _depth_range(clip_w, draw) -> tuple[float, float]:
-        """Nearest and farthest view depth (clip w) of the draw's bounding box corners, for the order;
-        `clip_w`: the last row of the frame's projection times view."""
-        w = _bound_corners(draw.mesh) @ (clip_w @ draw.world)
-        return float(max(w.min(), 0.0)), float(max(w.max(), 0.0))
+    def _depth_ranges(clip_w, draws) -> dict[int, tuple[float, float]]:
+        """Per draw index, the nearest and farthest view depth (clip w) of its bounding box corners, for
+        the order; `clip_w`: the last row of the frame's projection times view. One array product for
+        all the draws (a field of 64 draws spent ~0.1 ms a frame on one small product per draw)."""
+        rows = np.einsum("j,njk->nk", clip_w, np.array([d.world for d in draws]))  # clip_w @ world, per draw
+        corners = np.array([_bound_corners(d.mesh) for d in draws])  # (n, 8, 4)
+        w = np.maximum(np.einsum("nck,nk->nc", corners, rows), 0.0)
+        return dict(zip((d.index for d in draws), zip(w.min(axis=1).tolist(), w.max(axis=1).tolist())))
 
     @staticmethod
     def _front_to_back(method) -> bool:
@@ -317,30 +335,51 @@ class ComputeRasterizer:
         """Buckets of the frame's triangle order: LARGE_TILE_BUCKETS for tile order in large frames."""
         return LARGE_TILE_BUCKETS if large_tile_frame(frame.method, frame.width * frame.height) else BUCKETS
 
-    def _order_pass(
-        self, triangles: int, order_kernels, depth_range: tuple[float, float], buckets: int, new_mesh: bool
-    ) -> None:
-        """Bucket-sort a draw's `triangles` in the frustum by view depth, index or screen tile (order.comp.j2).
+    def _order_pass(self, order_kernels, grids) -> None:
+        """Bucket-sort the draw's triangles in the frustum by view depth, index or screen tile (order.comp.j2).
 
-        draw() binds the buckets and the order list for all its draws; `new_mesh`: the draw before had
-        another mesh (the triangle count to set).
+        draw() binds the buckets, the keys, the order list and the draw's record (its triangle count
+        and depth range); `grids`: the dispatch grids of the bucket clear and of the draw's triangles.
         """
         ctx, (clear, count, scatter, scan) = self.ctx, order_kernels
-        # the keys share the mesh vertices' number: those served the vertex stage only
-        self._keys.bind_to_storage_buffer(Buffer.RASTER_ORDER_KEYS)
-        if new_mesh:
-            for kernel in (count, scatter):
-                set_uniform(kernel, "gua_tri_count", triangles)
-        set_uniform(count, "gua_depth_range", depth_range)
+        clear_grid, triangle_grid = grids
         # clear the bucket counts, count (a clear folded into the one-workgroup prefix sum made the order
         # stage slower: docs/decisions.md, 2026-11-28 "the order stage's clear")
-        for kernel, items in ((clear, buckets), (count, triangles)):
-            kernel.run(*_grid(items))
+        for kernel, grid in ((clear, clear_grid), (count, triangle_grid)):
+            kernel.run(*grid)
             ctx.memory_barrier(_STAGE_BARRIER)
         scan.run(1)  # prefix sum, and the setup stage's dispatch
         ctx.memory_barrier(_STAGE_BARRIER)
-        scatter.run(*_grid(triangles))
+        scatter.run(*triangle_grid)
         ctx.memory_barrier(_STAGE_BARRIER)
+
+    def _write_records(self, draws, ranges: dict[int, tuple[float, float]]) -> int:
+        """Every draw's record (raster/draw_record.py) into the records buffer, in `draws`' order; the stride.
+
+        The buffer is orphaned first: the GPU may still read the previous call's records, and a
+        fresh store lets this write go ahead without waiting for it.
+        """
+        stride = max(self._material(d.material).record.stride for d in draws)
+        data = bytearray(stride * len(draws))
+        cache = self._material_bytes
+        for k, d in enumerate(draws):
+            hit = cache.get(id(d.values))
+            if hit is None or hit[0] is not d.values:
+                hit = cache.put(id(d.values), (d.values, material_bytes(self._material(d.material).record, d.values)))
+            model = d.model_bytes or mat_bytes(d.world)
+            normal = d.normal_bytes or mat_bytes(np.linalg.inv(d.world).T)
+            head = head_bytes(model, normal, ranges[d.index], len(d.mesh.positions), d.mesh.triangle_count, d.index)
+            at = k * stride
+            data[at : at + len(head)] = head
+            data[at + len(head) : at + len(head) + len(hit[1])] = hit[1]
+        cache.end_frame()
+        if self._records is None or self._records.size < len(data) or idles(self._records.size, len(data)):
+            self._release(self._records)
+            self._records = self.ctx.buffer(reserve=with_margin(len(data)))
+        else:
+            self._records.orphan()
+        self._records.write(data)
+        return stride
 
     @staticmethod
     def _release(buf) -> None:
@@ -383,8 +422,7 @@ class ComputeRasterizer:
         ready: set[int] = set()  # kernels given call_values in this call
         last = None  # (kernels, material instance) whose uniforms and textures the draw before set
         # draws run one after the other: take them in depth order too (see _order_pass)
-        clip_w = (frame.projection @ frame.view)[3]
-        ranges = {d.index: self._depth_range(clip_w, d) for d in draws}
+        ranges = self._depth_ranges((frame.projection @ frame.view)[3], draws)
         if self._front_to_back(frame.method):
             draws = sorted(draws, key=lambda d: ranges[d.index][0])
         else:
@@ -399,19 +437,23 @@ class ComputeRasterizer:
         self._jobs.bind_to_storage_buffer(Buffer.RASTER_JOBS)
         self._buckets.bind_to_storage_buffer(Buffer.RASTER_BUCKETS)
         self._order.bind_to_storage_buffer(Buffer.RASTER_ORDER)
+        self._keys.bind_to_storage_buffer(Buffer.RASTER_ORDER_KEYS)
+        stride = self._write_records(draws, ranges)
+        clear_grid = _grid(buckets)
         last_mesh = None
-        for d in draws:
-            vertices, triangles = len(d.mesh.positions), d.mesh.triangle_count
+        for k, d in enumerate(draws):
             new_mesh = d.mesh is not last_mesh
-            last_mesh = d.mesh
+            if new_mesh:  # what follows from the mesh alone, looked up once for a run of draws of one mesh
+                last_mesh = d.mesh
+                vertices, triangles = len(d.mesh.positions), d.mesh.triangle_count
+                vertex_grid, order_grids = _grid(vertices), (clear_grid, _grid(triangles))
+                vbo, ibo = device.meshes.buffers(d.mesh)
+                vbo.bind_to_storage_buffer(Buffer.RASTER_MESH_VERTICES)
+                ibo.bind_to_storage_buffer(Buffer.RASTER_INDICES)
             kernels = programs.get(id(d.material))
             if kernels is None:  # per material, for this call (the method's state is fixed)
                 kernels = programs[id(d.material)] = self._programs(frame.method, d)
             vert, setup, binner, fine = kernels
-            vbo, ibo = device.meshes.buffers(d.mesh)
-            vbo.bind_to_storage_buffer(Buffer.RASTER_MESH_VERTICES)  # (the order stage's keys take its slot)
-            if new_mesh:
-                ibo.bind_to_storage_buffer(Buffer.RASTER_INDICES)
             for prog in kernels:
                 if prog.glo in ready:
                     continue
@@ -421,21 +463,19 @@ class ComputeRasterizer:
                     set_uniforms(prog, call_values.items())
                     if per_program is not None:
                         per_program(prog)
-            d.write_transform(vert)
-            set_uniform(vert, "gua_vertex_count", vertices)  # (per kernel: draws of other materials between)
-            if last is None or last[0] is not kernels or last[1] is not d.values:
-                apply_material(
-                    device.textures, d, kernels
-                )  # (the same kernels and instance as the draw before are all set)
+            self._records.bind_to_storage_buffer(Buffer.RASTER_DRAW, offset=k * stride, size=stride)
+            if self._material(d.material).samplers and (
+                last is None or last[0] is not kernels or last[1] is not d.values
+            ):
+                # the material's textures (its other values are in the record), unless the draw before's
+                apply_material(device.textures, d, kernels, samplers_only=True)
                 last = kernels, d.values
             self._mark("between_draws")  # from the last stage (or the set-up) to this draw's start
-            vert.run(*_grid(vertices))
+            vert.run(*vertex_grid)
             ctx.memory_barrier(_STAGE_BARRIER)
             self._mark("vertex")
-            self._order_pass(triangles, order_kernels, ranges[d.index], buckets, new_mesh)
+            self._order_pass(order_kernels, order_grids)
             self._mark("order")
-            for prog in (setup, binner, fine):
-                set_uniform(prog, "gua_draw_index", d.index)
             setup.run_indirect(self._state.buffer, _DISPATCH_OFFSET["setup_x"])
             ctx.memory_barrier(_STAGE_BARRIER)
             self._mark("setup")
@@ -519,6 +559,7 @@ class ComputeRasterizer:
             "raster_large_queue_used": min(large_peak, self.large_capacity) * 4,
             "raster_tile_jobs": self.job_capacity * 8,
             "raster_tile_jobs_used": min(jobs_peak, self.job_capacity) * 8,
+            "raster_draw_records": self._records.size if self._records is not None else 0,
         }
 
     def release(self) -> None:
@@ -534,9 +575,10 @@ class ComputeRasterizer:
             self._buckets,
             self._order,
             self._keys,
+            self._records,
         ):
             self._release(b)
         self._state = self._verts = self._large = self._jobs = None
-        self._buckets = self._order = self._keys = None
+        self._buckets = self._order = self._keys = self._records = None
         self.vertex_capacity = self.large_capacity = self.job_capacity = self.order_capacity = 0
         self._fresh, self._frame = True, None

@@ -12,15 +12,31 @@ import numpy as np
 
 from ..shaders import ShaderLibrary, SourceMap, mat_bytes, set_uniforms
 from ..shaders.slots import Texture
+from .draw_record import record_layout
 
 
-def material_vars(material, smap: SourceMap, stage: str | None, sources: Mapping[str, str] | None = None) -> dict:
+def material_vars(
+    material,
+    smap: SourceMap,
+    stage: str | None,
+    sources: Mapping[str, str] | None = None,
+    record: bool = False,
+) -> dict:
     """Template variables of `material` for a skeleton stage that runs its `stage` methods (None: none).
 
     The methods' code is bracketed for `smap` so compiler messages cite the material's files;
     `sources` replaces a method's code by name (the compute rasterizer's rewritten visibility code).
+    `record`: the values go into the draw's record block (raster/draw_record.glsl.j2), only the
+    samplers stay uniforms.
     """
-    out = {"material_uniforms": "\n".join(u.glsl_decl() for u in material.uniforms.values())}
+    specs = material.uniforms.values()
+    if record:
+        out = {
+            "material_uniforms": "\n".join(u.glsl_decl() for u in specs if u.type == "sampler2D"),
+            "material_record_members": record_layout(material).glsl,
+        }
+    else:
+        out = {"material_uniforms": "\n".join(u.glsl_decl() for u in specs)}
     if stage is None:
         return out
     label = f"material '{material.name}'"
@@ -39,22 +55,25 @@ def material_program(
     skeleton: Mapping[str, tuple[str, str | None, dict]],
     what: str = "",
     sources: Mapping[str, str] | None = None,
+    record: bool = False,
 ):
-    """Compile (once) `material` composed into `skeleton`: {GL stage: (template, material stage, variables)}."""
+    """Compile (once) `material` composed into `skeleton`: {GL stage: (template, material stage, variables)};
+    `record`: its values read from the draw's record (material_vars)."""
     smap = SourceMap()
     stages = {
-        gl_stage: (template, {**variables, **material_vars(material, smap, mstage, sources)})
+        gl_stage: (template, {**variables, **material_vars(material, smap, mstage, sources, record)})
         for gl_stage, (template, mstage, variables) in skeleton.items()
     }
     return programs.program(stages, smap, label=f"material '{material.name}' ({material.path}){what}")
 
 
-def apply_material(textures, draw, programs: Iterable) -> None:
+def apply_material(textures, draw, programs: Iterable, samplers_only: bool = False) -> None:
     """Bind the draw's material textures to their units and set its uniform values on `programs`.
 
     Every sampler gets its own unit whether or not a given program reads it, so the values hold
     for every program of the material (the compute rasterizer sets them on four kernels); the
-    values are converted once for all of them.
+    values are converted once for all of them. `samplers_only`: the other values are in the
+    draw's record (raster/draw_record.py).
     """
     unit = Texture.MATERIALS
     values = []
@@ -63,6 +82,8 @@ def apply_material(textures, draw, programs: Iterable) -> None:
         if spec.type == "sampler2D":
             textures.get(value, draw.material.path.parent).use(location=unit)
             value, unit = unit, unit + 1
+        elif samplers_only:
+            continue
         elif spec.type == "mat4":
             value = mat_bytes(np.asarray(value, dtype=np.float64).reshape(4, 4))
         elif isinstance(value, list):

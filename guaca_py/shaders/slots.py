@@ -68,8 +68,8 @@ class Buffer(Kind):
         ),
         "raster": Group(
             "the compute rasterizer's kernels; the fine kernel hosts the method's fragment code, so "
-            "they bind above the method's numbers (9 holds the mesh for the vertex stage, the keys "
-            "for the order stage)",
+            "they bind above the method's numbers; per draw only the draw's record is bound (and "
+            "the mesh's buffers where the mesh changes)",
             frozenset({"lights", "method"}),
         ),
         "debug": Group(
@@ -102,7 +102,10 @@ class Buffer(Kind):
     MULTILAYER_DROPPED = Slot(5, "method", "multi-layer peeling dropped counts: peeling/multilayer_layout.glsl.j2")
     RASTER_VERTICES = Slot(8, "raster", "transformed vertex records: raster/vertex.comp.j2 writes, later stages read")
     RASTER_MESH_VERTICES = Slot(9, "raster", "the mesh's vertex buffer, vertex stage only: raster/vertex.comp.j2")
-    RASTER_ORDER_KEYS = Slot(9, "raster", "the order stage's sort keys, after the vertex stage: raster/order.comp.j2")
+    RASTER_ORDER_KEYS = Slot(16, "raster", "the order stage's sort keys: raster/order.comp.j2")
+    RASTER_DRAW = Slot(
+        17, "raster", "the draw's record (matrices, counts, depth range, material values): raster/draw_record.glsl.j2"
+    )
     RASTER_INDICES = Slot(10, "raster", "the mesh's index buffer: raster/triangle.glsl.j2, raster/order.comp.j2")
     RASTER_STATE = Slot(11, "raster", "queue counters and indirect dispatch arguments: raster/state.glsl.j2")
     RASTER_LARGE = Slot(12, "raster", "triangles queued for the bin stage: raster/setup.comp.j2, raster/bin.comp.j2")
