@@ -35,7 +35,7 @@ from .. import env
 from ..errors import ConfigError
 from ..gpu_counters import CounterBlock
 from ..gpu_timer import Timestamps
-from ..growth import idles, with_margin
+from ..growth import with_margin
 from ..limits import require_bytes
 from ..pipeline.device import Device
 from ..pipeline.draw_cache import TwoGenerations
@@ -373,7 +373,7 @@ class ComputeRasterizer:
             data[at : at + len(head)] = head
             data[at + len(head) : at + len(head) + len(hit[1])] = hit[1]
         cache.end_frame()
-        if self._records is None or self._records.size < len(data) or idles(self._records.size, len(data)):
+        if self._records is None or self._records.size < len(data):  # never shrunk: 256 B a draw
             self._release(self._records)
             self._records = self.ctx.buffer(reserve=with_margin(len(data)))
         else:

@@ -784,3 +784,13 @@ def test_a_repeated_frame_sends_only_what_differs_between_draws(renderer_factory
     written.clear()
     r.render(scene, 64, 64)
     assert 0 < written.count("gua_view_matrix") <= 4, written.count("gua_view_matrix")
+
+
+def test_draw_records_keep_their_room(renderer_factory):
+    # every draw's record (raster/draw_record.py) in one buffer a call: it grows to the largest call and stays
+    # (a view or frame of fewer draws made it anew, so views of one call reported different allocations)
+    r = renderer_factory("exact", method="presort_lf_et", method_overrides={"raster": "compute"})
+    many = simple_scene([quad_node(f"q{i}", -0.1 * i, (1, 0.5, 0.2), 0.5) for i in range(12)])
+    few = simple_scene([quad_node("q0", 0.0, (1, 0.5, 0.2), 0.5)])
+    sizes = [r.render(scene, 32, 32).stats["memory"]["raster_draw_records"] for scene in (many, few, many)]
+    assert sizes[0] >= 12 * 256 and sizes == [sizes[0]] * 3

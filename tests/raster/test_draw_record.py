@@ -20,21 +20,23 @@ SPECS = {
     "a_vec4": ("vec4", [6.0, 7.0, 8.0, 9.0]),
 }
 
-# each member copied to 16 floats of the output (ints as their bits), the head's first
+# each member copied to 4 words of the output, as bits: a float read back through a float store could be flushed
+# (a denormal) or its NaN bits made canonical on a GPU
 KERNEL = """#version 450 core
 layout(local_size_x = 1) in;
 {% include "raster/draw_record.glsl.j2" %}
-layout(std430, binding = 0) writeonly buffer Out { float o[]; };
-void put(int k, vec4 v) { o[4 * k] = v.x; o[4 * k + 1] = v.y; o[4 * k + 2] = v.z; o[4 * k + 3] = v.w; }
+layout(std430, binding = 0) writeonly buffer Out { uint o[]; };
+void put(int k, uvec4 v) { o[4 * k] = v.x; o[4 * k + 1] = v.y; o[4 * k + 2] = v.z; o[4 * k + 3] = v.w; }
+void putf(int k, vec4 v) { put(k, floatBitsToUint(v)); }
 void main() {
-    for (int c = 0; c < 4; ++c) put(c, gua_model_matrix[c]);
-    for (int c = 0; c < 4; ++c) put(4 + c, gua_normal_matrix[c]);
-    put(8, vec4(gua_depth_range, uintBitsToFloat(gua_vertex_count), uintBitsToFloat(gua_tri_count)));
-    put(9, vec4(intBitsToFloat(gua_draw_index), a_float, intBitsToFloat(an_int), 0.0));
-    put(10, vec4(a_vec3, 0.0));
-    put(11, vec4(a_vec2, 0.0, 0.0));
-    put(12, a_vec4);
-    for (int c = 0; c < 4; ++c) put(13 + c, a_mat4[c]);
+    for (int c = 0; c < 4; ++c) putf(c, gua_model_matrix[c]);
+    for (int c = 0; c < 4; ++c) putf(4 + c, gua_normal_matrix[c]);
+    put(8, uvec4(floatBitsToUint(gua_depth_range), gua_vertex_count, gua_tri_count));
+    put(9, uvec4(uint(gua_draw_index), floatBitsToUint(a_float), uint(an_int), 0u));
+    putf(10, vec4(a_vec3, 0.0));
+    putf(11, vec4(a_vec2, 0.0, 0.0));
+    putf(12, a_vec4);
+    for (int c = 0; c < 4; ++c) putf(13 + c, a_mat4[c]);
 }
 """
 
@@ -59,9 +61,7 @@ def test_the_kernel_reads_what_the_packer_wrote(gl_context):
     values = {n: v for n, (_, v) in SPECS.items()}
     model = np.arange(16, dtype=np.float64).reshape(4, 4) + 1.0
     normal = np.linalg.inv(model + np.eye(4) * 5).T
-    record = head_bytes(mat_bytes(model), mat_bytes(normal), (0.5, 9.0), 1234, 567, 89) + material_bytes(
-        layout, values
-    )
+    record = head_bytes(mat_bytes(model), mat_bytes(normal), (0.5, 9.0), 1234, 567, 89) + material_bytes(layout, values)
     assert len(record) == layout.size and record_layout(mat).size > HEAD_BYTES
     lib = ShaderLibrary(gl_context)
     src = lib.env.from_string(KERNEL).render(material_record_members=layout.glsl)
@@ -72,8 +72,8 @@ def test_the_kernel_reads_what_the_packer_wrote(gl_context):
     records.bind_to_storage_buffer(Buffer.RASTER_DRAW, offset=layout.stride, size=layout.stride)
     out.bind_to_storage_buffer(0)
     shader.run(1)
-    got = np.frombuffer(out.read(), np.float32).reshape(17, 4)
-    bits = got.view(np.int32)
+    bits = np.frombuffer(out.read(), np.int32).reshape(17, 4)
+    got = bits.view(np.float32)
     np.testing.assert_array_equal(got[0:4], model.T.astype(np.float32))  # columns
     np.testing.assert_array_equal(got[4:8], normal.T.astype(np.float32))
     assert tuple(got[8, :2]) == (0.5, 9.0) and tuple(bits[8, 2:]) == (1234, 567)
