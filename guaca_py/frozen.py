@@ -10,17 +10,21 @@ from dataclasses import fields
 
 import numpy as np
 
-_NUMBERS = frozenset((float, int))
+_PLAIN = frozenset((float, int, bool, str, type(None)))  # hashable and compared by value as they are
 
 
 def freeze(value):
-    """A hashable stand-in for a value (lists and arrays become tuples; objects stay)."""
+    """A hashable stand-in for a value (lists and arrays become tuples, dicts sorted item tuples; objects stay)."""
     kind = type(value)
-    if (kind is tuple or kind is list) and set(map(type, value)) <= _NUMBERS:
-        return tuple(value)  # plain numbers as they are: the common case, a handful of calls a node a frame
+    if kind in _PLAIN:
+        return value
+    if (kind is tuple or kind is list) and set(map(type, value)) <= _PLAIN:
+        return tuple(value)  # plain items as they are: the common case, a handful of calls a node a frame
     if isinstance(value, (list, tuple, np.ndarray)):
         return tuple(freeze(v) for v in value)
-    if isinstance(value, (float, np.floating)):
+    if isinstance(value, dict):
+        return tuple(sorted((k, freeze(v)) for k, v in value.items()))
+    if isinstance(value, np.floating):
         return float(value)
     return value
 

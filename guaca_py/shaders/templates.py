@@ -11,6 +11,7 @@ import numpy as np
 
 from ..context import is_software
 from ..errors import ShaderCompileError
+from ..frozen import freeze
 from ..resources import builtin_dir
 from . import slots
 
@@ -145,17 +146,6 @@ class ShaderLibrary:
 _SCALARS = frozenset((str, int, float, bool, type(None)))
 
 
-def _freeze(value):
-    """A hashable form of a template variable (lists and dicts become tuples)."""
-    if type(value) in _SCALARS:
-        return value
-    if isinstance(value, dict):
-        return tuple(sorted((k, _freeze(v)) for k, v in value.items()))
-    if isinstance(value, (list, tuple)):
-        return tuple(_freeze(v) for v in value)
-    return value
-
-
 def program_key(stages: dict[str, tuple[str, dict]]) -> tuple:
     """The cache key of a program: each stage's template and its variables, frozen.
 
@@ -164,7 +154,7 @@ def program_key(stages: dict[str, tuple[str, dict]]) -> tuple:
     """
     return tuple(
         sorted(
-            (stage, tpl, tuple(sorted((k, v if type(v) in _SCALARS else _freeze(v)) for k, v in vars_.items())))
+            (stage, tpl, tuple(sorted((k, v if type(v) in _SCALARS else freeze(v)) for k, v in vars_.items())))
             for stage, (tpl, vars_) in stages.items()
         )
     )
