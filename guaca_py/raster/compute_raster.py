@@ -33,6 +33,7 @@ import numpy as np
 
 from .. import env
 from ..errors import ConfigError
+from ..frozen import freeze
 from ..gpu_counters import CounterBlock
 from ..gpu_timer import Timestamps
 from ..growth import with_margin
@@ -88,6 +89,7 @@ SMALL_FRAGMENTS = 16.0
 MEDIUM_AREA = 1024  # larger boxes up to this many pixels by one 64-thread workgroup, without tiles
 VERTEX_RECORD_BYTES = 48  # clip position, world position + u, normal + v
 MAX_REGROW = 2  # re-renders one frame may take to grow the queue or the job list
+MAX_REMEMBERED_KERNELS = 256  # (material, method state) pairs whose kernels draw() keeps at hand
 BUCKETS = 16384  # buckets of the triangle order (a multiple of SCAN_LANES: order_scan.comp.j2)
 # Tile order in frames past raster/choice.py's LARGE_FRAME_PIXELS: 256 depth buckets in each of the
 # 16 x 16 tiles instead of 64, so early termination still meets a tile's triangles nearly front to
@@ -176,6 +178,7 @@ class ComputeRasterizer:
         self._materials: dict[int, tuple] = {}  # id(material) -> (material, _Material)
         self._records = None  # the draws' records of a call (raster/draw_record.py), rewritten each call
         self._material_bytes = TwoGenerations()  # id(values) -> (values, their bytes in a record)
+        self._kernels: dict[tuple, tuple] = {}  # (id(material), _method_key) -> (material, its four kernels)
         # GUACA_RASTER_STAGES=1: GPU time per stage in stats (reading it waits for the GPU: profiling only)
         self._stages: Timestamps | None = None
         self.profile_stages(env.raster_stages())
@@ -213,9 +216,38 @@ class ComputeRasterizer:
         """Why `draw`'s material cannot run in the compute host (None: it can)."""
         return self._material(draw.material).compute.problem
 
-    def _programs(self, method, draw):
-        """(vertex, setup, bin, fine) kernels for the draw's material and `method`, compiled once."""
+    @staticmethod
+    def _method_key(method, tuning: tuple) -> tuple:
+        """What the kernels take from `method` and the tuning (the frozen _raster_vars): equal keys, equal
+        kernels (draw() derives it once a call)."""
+        return freeze(method.template_vars()), method.extensions(), method.fragment_template(), tuning
+
+    def _call_kernels(self, buckets: int, tuning: tuple) -> tuple[dict, tuple]:
+        """The material-independent kernels of a call: the queue bookkeeping after the setup (1) and bin (2)
+        stages; the order stage's bucket clear (0), count (1) and scatter (3), then its prefix sum.
+        Remembered per bucket count and tuning, as _programs remembers a material's."""
+        hit = self._kernels.get(("call", buckets, tuning))
+        if hit is None:
+            args = {m: self._kernel("raster/args.comp.j2", args_mode=m) for m in (1, 2)}
+            order_kernels = (
+                *(self._kernel("raster/order.comp.j2", order_mode=m, raster_buckets=buckets) for m in (0, 1, 3)),
+                self._kernel("raster/order_scan.comp.j2", raster_buckets=buckets),
+            )
+            hit = self._kernels[("call", buckets, tuning)] = (args, order_kernels)
+        return hit
+
+    def _programs(self, method, draw, method_key: tuple | None = None):
+        """(vertex, setup, bin, fine) kernels for the draw's material and `method`, compiled once.
+
+        With `method_key` (_method_key) remembered per material and key: the program cache's key of
+        each kernel freezes every template variable, some hundred calls a material and frame otherwise.
+        """
         mat = draw.material
+        hit = self._kernels.get((id(mat), method_key)) if method_key is not None else None
+        if hit is not None and hit[0] is mat:
+            return hit[1]
+        if len(self._kernels) >= MAX_REMEMBERED_KERNELS:  # materials or methods replaced over and over
+            self._kernels.clear()
         cm = self._material(mat).compute
         if cm.problem:
             raise ConfigError(cm.problem, mat.path, None, "transparency.raster")
@@ -246,6 +278,8 @@ class ComputeRasterizer:
                     self.device.programs, mat, skeleton, f", compute raster {stage}", cm.sources, record=True
                 )
             )
+        if method_key is not None:
+            self._kernels[(id(mat), method_key)] = (mat, tuple(kernels))
         return tuple(kernels)
 
     def _kernel(self, template: str, **variables):
@@ -398,14 +432,9 @@ class ComputeRasterizer:
         gbuffer = frame.resources["gbuffer"]
         gbuffer.depth.use(location=Texture.RASTER_DEPTH)
         samples = sample_uniforms(device.antialiasing.positions)
-        # the queue bookkeeping after the setup (1) and bin (2) stages; the order stage's bucket clear
-        # (0), count (1) and scatter (3), then its prefix sum
-        args = {m: self._kernel("raster/args.comp.j2", args_mode=m) for m in (1, 2)}
         buckets = self._buckets_of(frame)
-        order_kernels = (
-            *(self._kernel("raster/order.comp.j2", order_mode=m, raster_buckets=buckets) for m in (0, 1, 3)),
-            self._kernel("raster/order_scan.comp.j2", raster_buckets=buckets),
-        )
+        tuning = freeze(self._raster_vars())
+        args, order_kernels = self._call_kernels(buckets, tuning)
         self._order_constants(frame, order_kernels, samples["gua_sample_span"])
         set_uniform(args[1], "gua_capacity", self.large_capacity)
         set_uniform(args[2], "gua_capacity", self.job_capacity)
@@ -419,6 +448,7 @@ class ComputeRasterizer:
             "gua_job_capacity": self.job_capacity,
         }
         programs: dict[int, tuple] = {}
+        method_key = self._method_key(frame.method, tuning)
         ready: set[int] = set()  # kernels given call_values in this call
         last = None  # (kernels, material instance) whose uniforms and textures the draw before set
         # draws run one after the other: take them in depth order too (see _order_pass)
@@ -452,7 +482,7 @@ class ComputeRasterizer:
                 ibo.bind_to_storage_buffer(Buffer.RASTER_INDICES)
             kernels = programs.get(id(d.material))
             if kernels is None:  # per material, for this call (the method's state is fixed)
-                kernels = programs[id(d.material)] = self._programs(frame.method, d)
+                kernels = programs[id(d.material)] = self._programs(frame.method, d, method_key)
             vert, setup, binner, fine = kernels
             for prog in kernels:
                 if prog.glo in ready:
@@ -580,5 +610,6 @@ class ComputeRasterizer:
             self._release(b)
         self._state = self._verts = self._large = self._jobs = None
         self._buckets = self._order = self._keys = self._records = None
+        self._kernels.clear()  # the programs are the library's; the renderer releases them with it
         self.vertex_capacity = self.large_capacity = self.job_capacity = self.order_capacity = 0
         self._fresh, self._frame = True, None

@@ -776,9 +776,9 @@ def test_a_repeated_frame_sends_only_what_differs_between_draws(renderer_factory
     assert again.stats["raster"]["compute_draws"] == n
     camera = {"gua_view_matrix", "gua_projection_matrix", "gua_inverse_view_projection", "gua_camera_position"}
     assert not camera & set(written), sorted(set(written))
-    # per draw: its transform (2), index and material values on the three rasterizing kernels (3 + 3 per
-    # value), the order and queue kernels' per-stage modes (3 + 4) and its depth range (1); per frame: a few
-    assert len(written) <= 20 * n + 8, sorted(written)
+    # per draw nothing: its transform, counts, depth range, index and material values are in its record
+    # (raster/draw_record.py); per frame: a few
+    assert len(written) <= 8, sorted(written)
     # a moved camera: each kernel gets the new camera once, not once per draw
     scene.camera.position = tuple(np.add(scene.camera.position, (0.01, 0.0, 0.0)))
     written.clear()
@@ -794,3 +794,26 @@ def test_draw_records_keep_their_room(renderer_factory):
     few = simple_scene([quad_node("q0", 0.0, (1, 0.5, 0.2), 0.5)])
     sizes = [r.render(scene, 32, 32).stats["memory"]["raster_draw_records"] for scene in (many, few, many)]
     assert sizes[0] >= 12 * 256 and sizes == [sizes[0]] * 3
+
+
+def test_a_repeated_frame_looks_up_no_raster_kernel_and_a_new_method_gets_its_own(renderer_factory, monkeypatch):
+    # the kernels of a material are remembered per method state (the program cache's key freezes every
+    # template variable, some hundred calls a material and frame); another method must not get them
+    r = renderer_factory("exact", method="presort_lf_et", method_overrides={"raster": "compute"})
+    scene = layered_quads_scene(n_layers=4)
+    for _ in range(2):
+        r.render(scene, 64, 64)
+    library = r.raster.compute.device.programs
+    looked_up = []
+    real = library.program
+    monkeypatch.setattr(
+        library,
+        "program",
+        lambda stages, *a, **k: (looked_up.extend(t for t, _ in stages.values()), real(stages, *a, **k))[1],
+    )
+    r.render(scene, 64, 64)
+    assert not [t for t in looked_up if t.startswith("raster/")], looked_up
+    r.set_method("presort_lf_merge2_et", {"raster": "compute"})  # another insertion: other kernels
+    frame = r.render(scene, 64, 64)
+    assert {"raster/vertex.comp.j2", "raster/setup.comp.j2", "raster/fine.comp.j2"} <= set(looked_up)
+    assert frame.stats["raster"]["compute_draws"] == 4 and frame.stats["fragments"]["stored"] > 0
