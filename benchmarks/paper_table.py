@@ -37,6 +37,7 @@ from guaca_py.benchmarking import (
     measure_point,
     open_device,
     plain_log_axis,
+    raster_overrides,
     scaling,
     scene_paths,
     time_label,
@@ -142,8 +143,8 @@ def time_row(renderer, scene, args, warmup_s: float | None = None) -> dict:
 def make_renderer(ctx, mid: str, raster: str) -> Renderer | None:
     """A default-pipeline Renderer for `mid` through `raster` ('compute/tile': with that raster_order);
     None where the method has no such rasterizer."""
-    kind, _, order = raster.partition("/")
-    overrides = {"raster": kind, **({"raster_order": order} if order else {})}
+    overrides = raster_overrides(raster)
+    kind = overrides["raster"]
     try:
         return Renderer("default", ctx=ctx, method=mid, method_overrides=overrides, **_OWN)
     except UnsupportedMethodError:

@@ -95,6 +95,13 @@ def add_reference_args(ap: argparse.ArgumentParser, k: int = 8) -> None:
     ap.add_argument("--tile", type=int, default=2048, help="largest reference tile side in px")
 
 
+def raster_overrides(raster: str) -> dict:
+    """Method settings of a benchmark's `--raster` choice: `auto`, `hardware`, `compute`, or `compute/ORDER`
+    (`compute/tile`: that rasterizer with that raster_order)."""
+    kind, _, order = raster.partition("/")
+    return {"raster": kind, **({"raster_order": order} if order else {})}
+
+
 def scene_paths(args: argparse.Namespace) -> list[Path]:
     """The scene YAMLs of --scenes, only those of --scene-names (in that order) where given; exits if there are none."""
     if args.scene_names:

@@ -38,7 +38,7 @@ from ..scene.graph import Camera, Scene
 from ..scene.loader import load_scene
 from ..scene.views import stereo_pair
 from .clock import at_full_clock, below_max_clock, max_sm_clock
-from .harness import Progress, Results, bench_args, header, open_device, timer_of
+from .harness import Progress, Results, bench_args, header, open_device, raster_overrides, timer_of
 from .scenes import write_field
 
 NAME = "scaling"
@@ -86,12 +86,12 @@ class Renderers:
         self._made: dict[tuple[str, str, bool], Renderer] = {}
 
     def get(self, method: str, raster: str, stages: bool = False) -> Renderer:
-        """The renderer of `method` through `raster` (`stages`: its twin whose compute rasterizer times stages)."""
+        """The renderer of `method` through `raster` ('compute/tile': with that raster_order; `stages`: its
+        twin whose compute rasterizer times stages)."""
         key = (method, raster, stages)
         if key not in self._made:
-            r = self._made[key] = Renderer(
-                "default", ctx=self.ctx, method=method, method_overrides={"raster": raster}, **_OWN
-            )
+            overrides = raster_overrides(raster)
+            r = self._made[key] = Renderer("default", ctx=self.ctx, method=method, method_overrides=overrides, **_OWN)
             r.raster.compute.profile_stages(stages)
         return self._made[key]
 
@@ -178,6 +178,7 @@ def _summary(frames: list) -> dict:
         "bytes_per_node": node,
         "pool_nodes": pool // node if pool and node else None,
         "drew": {k: sum(s.get("raster", {}).get(f"{k}_draws", 0) for s in stats) for k in ("compute", "hardware")},
+        "raster_order": next((c["order"] for c in comp if c.get("order")), None),  # the compute rasterizer's
         "regrown": sum(s.get("regrown", 0) for s in stats),
         "warnings": sorted({w for s in stats for w in s.get("warnings", [])}),
     }
@@ -470,7 +471,12 @@ def parser(script: str) -> argparse.ArgumentParser:
     ap.set_defaults(scene_names=list(SCENES), warmup_s=0.5)
     ap.add_argument("--sizes", type=int, nargs="*", default=list(SIZES), help="square frame sizes of the size part")
     ap.add_argument("--methods", nargs="*", default=[FIRST_METHOD, next_exact_method()])
-    ap.add_argument("--raster", nargs="*", default=list(RASTERS), help="transparency.raster settings")
+    ap.add_argument(
+        "--raster",
+        nargs="*",
+        default=list(RASTERS),
+        help="transparency.raster settings; compute/ORDER also sets raster_order",
+    )
     ap.add_argument("--stereo-scene", default="dragons", help="scene of the stereo part")
     ap.add_argument("--stereo-size", type=int, default=2048, help="each stereo view's size (0: no stereo part)")
     ap.add_argument("--eye-separation", type=float, default=0.3, help="stereo eye separation in scene units")

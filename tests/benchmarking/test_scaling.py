@@ -101,3 +101,12 @@ def test_stereo_ratio_pairs_each_configuration_with_its_one_frame():
         {"method": "m", "raster": "hardware", "views": 2, "ns_per_stored": 2.0},
     ]
     assert scaling.stereo_ratios(rows) == [("m", "auto", pytest.approx(1.05)), ("m", "hardware", None)]
+
+
+def test_a_raster_choice_may_name_the_triangle_order(gl_context, scenes, tmp_path):
+    # compute/ORDER, as Table 1 takes it: the stereo pair's views at 2048² and one 2048x4096 frame fall on
+    # either side of the order bound (raster/choice.py), and this measures both in one order
+    extra = ("--raster", "compute/tile", "--stereo-size", "0", "--field")
+    rows = run(scenes, tmp_path, *extra)["rows"]
+    assert [(r["raster"], r["raster_order"]) for r in rows] == [("compute/tile", "tile")]
+    assert rows[0]["drew"] == {"compute": 2, "hardware": 0}
