@@ -13,7 +13,7 @@
 #
 # The trees read the scenes of this checkout's .scenes/ and the Python path set up here (source
 # benchmarks/gpu_env.sh first on the GPU machine). Example, 4 samples before and after a change:
-#   bash benchmarks/ab.sh pack 15e20c5 HEAD           # here, then carry .ab, .gl, .whl, .scenes
+#   bash benchmarks/ab.sh pack bf5103d HEAD           # here, then carry .ab, .gl, .whl, .scenes
 #   source benchmarks/gpu_env.sh && bash benchmarks/ab.sh run "$OUT" 2 benchmarks/aa_cost.py \
 #     --size 1024 --scene-names dragons hairball_v1 --samples 4
 set -uo pipefail
