@@ -176,7 +176,8 @@ class ComputeRasterizer:
         self.small_fragments = SMALL_FRAGMENTS
         self.medium_area = MEDIUM_AREA
         self._materials: dict[int, tuple] = {}  # id(material) -> (material, _Material)
-        self._records = None  # the draws' records of a call (raster/draw_record.py), rewritten each call
+        self._records = None  # the draws' records of a call (raster/draw_record.py), written where they changed
+        self._records_held = b""  # the bytes the records buffer holds
         self._material_bytes = TwoGenerations()  # id(values) -> (values, their bytes in a record)
         self._kernels: dict[tuple, tuple] = {}  # (id(material), _method_key) -> (material, its four kernels)
         # GUACA_RASTER_STAGES=1: GPU time per stage in stats (reading it waits for the GPU: profiling only)
@@ -390,7 +391,8 @@ class ComputeRasterizer:
     def _write_records(self, draws, ranges: dict[int, tuple[float, float]]) -> int:
         """Every draw's record (raster/draw_record.py) into the records buffer, in `draws`' order; the stride.
 
-        The buffer is orphaned first: the GPU may still read the previous call's records, and a
+        The bytes the buffer already holds (a still scene's, frame after frame) are not sent again;
+        for others it is orphaned first: the GPU may still read the previous call's records, and a
         fresh store lets this write go ahead without waiting for it.
         """
         stride = max(self._material(d.material).record.stride for d in draws)
@@ -410,9 +412,12 @@ class ComputeRasterizer:
         if self._records is None or self._records.size < len(data):  # never shrunk: 256 B a draw
             self._release(self._records)
             self._records = self.ctx.buffer(reserve=with_margin(len(data)))
+        elif data == self._records_held:  # a still scene: the buffer holds these bytes already
+            return stride
         else:
             self._records.orphan()
         self._records.write(data)
+        self._records_held = bytes(data)
         return stride
 
     @staticmethod
@@ -610,6 +615,7 @@ class ComputeRasterizer:
             self._release(b)
         self._state = self._verts = self._large = self._jobs = None
         self._buckets = self._order = self._keys = self._records = None
+        self._records_held = b""
         self._kernels.clear()  # the programs are the library's; the renderer releases them with it
         self.vertex_capacity = self.large_capacity = self.job_capacity = self.order_capacity = 0
         self._fresh, self._frame = True, None

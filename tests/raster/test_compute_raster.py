@@ -817,3 +817,23 @@ def test_a_repeated_frame_looks_up_no_raster_kernel_and_a_new_method_gets_its_ow
     frame = r.render(scene, 64, 64)
     assert {"raster/vertex.comp.j2", "raster/setup.comp.j2", "raster/fine.comp.j2"} <= set(looked_up)
     assert frame.stats["raster"]["compute_draws"] == 4 and frame.stats["fragments"]["stored"] > 0
+
+
+def test_a_still_scene_sends_its_draw_records_once(renderer_factory, monkeypatch):
+    # the records of a frame like the last are what the buffer holds: not written (nor orphaned) again
+    import moderngl
+
+    r = renderer_factory("exact", method="presort_lf_et", method_overrides={"raster": "compute"})
+    scene = layered_quads_scene(n_layers=3)
+    first = r.render(scene, 32, 32)
+    records = r.raster.compute._records
+    writes = []
+    write = moderngl.Buffer.write
+    monkeypatch.setattr(
+        moderngl.Buffer, "write", lambda b, *a, **k: (writes.append(b is records), write(b, *a, **k))[1]
+    )
+    again = r.render(scene, 32, 32)
+    assert not any(writes) and np.array_equal(again.image, first.image)
+    scene.nodes[0].transform.translation = (0.05, 0.0, scene.nodes[0].transform.translation[2])
+    moved = r.render(scene, 32, 32)
+    assert writes.count(True) == 1 and not np.array_equal(moved.image, first.image)
