@@ -27,11 +27,19 @@ class Draw:
     model_bytes: bytes | None = None  # world and inverse-transpose as GL bytes, when a DrawCache made them
     normal_bytes: bytes | None = None
 
+    def model_gl(self) -> bytes:
+        """The model matrix as GL bytes (the DrawCache's when it made them)."""
+        return self.model_bytes or mat_bytes(self.world)
+
+    def normal_gl(self) -> bytes:
+        """The normal matrix (the model's inverse transpose) as GL bytes (the DrawCache's when it made them)."""
+        return self.normal_bytes or mat_bytes(np.linalg.inv(self.world).T)
+
     def write_transform(self, prog) -> None:
-        """Write the model and normal matrices a program uses (the DrawCache's bytes when it made them)."""
-        set_uniform(prog, "gua_model_matrix", self.model_bytes or mat_bytes(self.world))
+        """Write the model and normal matrices a program uses."""
+        set_uniform(prog, "gua_model_matrix", self.model_gl())
         if "gua_normal_matrix" in uniform_names(prog):  # the inverse only where it is used
-            set_uniform(prog, "gua_normal_matrix", self.normal_bytes or mat_bytes(np.linalg.inv(self.world).T))
+            set_uniform(prog, "gua_normal_matrix", self.normal_gl())
 
 
 def _mesh_reach(mesh) -> float:

@@ -34,13 +34,13 @@ import numpy as np
 from .. import env
 from ..errors import ConfigError
 from ..frozen import freeze
-from ..gpu_counters import CounterBlock
+from ..gpu_counters import CounterBlock, UploadBuffer
 from ..gpu_timer import Timestamps
 from ..growth import with_margin
 from ..limits import require_bytes
 from ..pipeline.device import Device
 from ..pipeline.draw_cache import TwoGenerations
-from ..shaders import mat_bytes, set_uniform, set_uniforms
+from ..shaders import set_uniform, set_uniforms
 from ..shaders.slots import Buffer, Texture
 from .choice import large_tile_frame
 from .draw_record import RecordLayout, head_bytes, material_bytes, record_layout
@@ -176,8 +176,9 @@ class ComputeRasterizer:
         self.small_fragments = SMALL_FRAGMENTS
         self.medium_area = MEDIUM_AREA
         self._materials: dict[int, tuple] = {}  # id(material) -> (material, _Material)
-        self._records = None  # the draws' records of a call (raster/draw_record.py), written where they changed
-        self._records_held = b""  # the bytes the records buffer holds
+        # the draws' records of a call (raster/draw_record.py): sent through a staging copy, and only where
+        # they changed, as every buffer the CPU fills for shaders to read
+        self._records = UploadBuffer(self.ctx)
         self._material_bytes = TwoGenerations()  # id(values) -> (values, their bytes in a record)
         self._kernels: dict[tuple, tuple] = {}  # (id(material), _method_key) -> (material, its four kernels)
         # GUACA_RASTER_STAGES=1: GPU time per stage in stats (reading it waits for the GPU: profiling only)
@@ -391,33 +392,24 @@ class ComputeRasterizer:
     def _write_records(self, draws, ranges: dict[int, tuple[float, float]]) -> int:
         """Every draw's record (raster/draw_record.py) into the records buffer, in `draws`' order; the stride.
 
-        The bytes the buffer already holds (a still scene's, frame after frame) are not sent again;
-        for others it is orphaned first: the GPU may still read the previous call's records, and a
-        fresh store lets this write go ahead without waiting for it.
+        UploadBuffer sends none of it where the buffer holds these bytes already (a still scene's).
         """
-        stride = max(self._material(d.material).record.stride for d in draws)
+        layouts = [self._material(d.material).record for d in draws]
+        stride = max(layout.stride for layout in layouts)
         data = bytearray(stride * len(draws))
         cache = self._material_bytes
-        for k, d in enumerate(draws):
+        for k, (d, layout) in enumerate(zip(draws, layouts)):
             hit = cache.get(id(d.values))
             if hit is None or hit[0] is not d.values:
-                hit = cache.put(id(d.values), (d.values, material_bytes(self._material(d.material).record, d.values)))
-            model = d.model_bytes or mat_bytes(d.world)
-            normal = d.normal_bytes or mat_bytes(np.linalg.inv(d.world).T)
-            head = head_bytes(model, normal, ranges[d.index], len(d.mesh.positions), d.mesh.triangle_count, d.index)
+                hit = cache.put(id(d.values), (d.values, material_bytes(layout, d.values)))
+            head = head_bytes(
+                d.model_gl(), d.normal_gl(), ranges[d.index], len(d.mesh.positions), d.mesh.triangle_count, d.index
+            )
             at = k * stride
             data[at : at + len(head)] = head
             data[at + len(head) : at + len(head) + len(hit[1])] = hit[1]
         cache.end_frame()
-        if self._records is None or self._records.size < len(data):  # never shrunk: 256 B a draw
-            self._release(self._records)
-            self._records = self.ctx.buffer(reserve=with_margin(len(data)))
-        elif data == self._records_held:  # a still scene: the buffer holds these bytes already
-            return stride
-        else:
-            self._records.orphan()
-        self._records.write(data)
-        self._records_held = bytes(data)
+        self._records.upload(bytes(data))  # grows to the largest call, never shrinks: 256 B a draw
         return stride
 
     @staticmethod
@@ -498,7 +490,7 @@ class ComputeRasterizer:
                     set_uniforms(prog, call_values.items())
                     if per_program is not None:
                         per_program(prog)
-            self._records.bind_to_storage_buffer(Buffer.RASTER_DRAW, offset=k * stride, size=stride)
+            self._records.buffer.bind_to_storage_buffer(Buffer.RASTER_DRAW, offset=k * stride, size=stride)
             if self._material(d.material).samplers and (
                 last is None or last[0] is not kernels or last[1] is not d.values
             ):
@@ -594,7 +586,7 @@ class ComputeRasterizer:
             "raster_large_queue_used": min(large_peak, self.large_capacity) * 4,
             "raster_tile_jobs": self.job_capacity * 8,
             "raster_tile_jobs_used": min(jobs_peak, self.job_capacity) * 8,
-            "raster_draw_records": self._records.size if self._records is not None else 0,
+            "raster_draw_records": self._records.buffer.size if self._records.buffer is not None else 0,
         }
 
     def release(self) -> None:
@@ -610,12 +602,11 @@ class ComputeRasterizer:
             self._buckets,
             self._order,
             self._keys,
-            self._records,
         ):
             self._release(b)
+        self._records.release()
         self._state = self._verts = self._large = self._jobs = None
-        self._buckets = self._order = self._keys = self._records = None
-        self._records_held = b""
+        self._buckets = self._order = self._keys = None
         self._kernels.clear()  # the programs are the library's; the renderer releases them with it
         self.vertex_capacity = self.large_capacity = self.job_capacity = self.order_capacity = 0
         self._fresh, self._frame = True, None

@@ -10,8 +10,6 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass
 
-import numpy as np
-
 from ..materials.description import MaterialDescription
 from ..shaders import mat_bytes
 
@@ -59,7 +57,7 @@ def material_bytes(layout: RecordLayout, values: dict) -> bytes:
     for name, kind, offset in layout.members:
         value, at = values[name], offset - HEAD_BYTES
         if kind == "mat4":
-            out[at : at + 64] = mat_bytes(np.asarray(value, dtype=np.float64).reshape(4, 4))
+            out[at : at + 64] = mat_bytes(value)
         elif kind == "int":
             struct.pack_into("<i", out, at, int(value))
         else:

@@ -8,8 +8,6 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 
-import numpy as np
-
 from ..shaders import ShaderLibrary, SourceMap, mat_bytes, set_uniforms
 from ..shaders.slots import Texture
 from .draw_record import record_layout
@@ -71,8 +69,8 @@ def apply_material(textures, draw, programs: Iterable, samplers_only: bool = Fal
     """Bind the draw's material textures to their units and set its uniform values on `programs`.
 
     Every sampler gets its own unit whether or not a given program reads it, so the values hold
-    for every program of the material (the compute rasterizer sets them on four kernels); the
-    values are converted once for all of them. `samplers_only`: the other values are in the
+    for every program of the material (the compute rasterizer sets its samplers on four kernels);
+    the values are converted once for all of them. `samplers_only`: the other values are in the
     draw's record (raster/draw_record.py).
     """
     unit = Texture.MATERIALS
@@ -85,7 +83,7 @@ def apply_material(textures, draw, programs: Iterable, samplers_only: bool = Fal
         elif samplers_only:
             continue
         elif spec.type == "mat4":
-            value = mat_bytes(np.asarray(value, dtype=np.float64).reshape(4, 4))
+            value = mat_bytes(value)
         elif isinstance(value, list):
             value = tuple(value)
         values.append((name, value))

@@ -161,8 +161,8 @@ def program_key(stages: dict[str, tuple[str, dict]]) -> tuple:
 
 
 def mat_bytes(m) -> bytes:
-    """A float64 row-major numpy matrix as the column-major float32 bytes GL expects."""
-    return np.ascontiguousarray(np.asarray(m, dtype=np.float32).T).tobytes()
+    """A row-major 4x4 matrix (an array, nested or 16 flat numbers) as the column-major float32 bytes GL expects."""
+    return np.ascontiguousarray(np.asarray(m, dtype=np.float32).reshape(4, 4).T).tobytes()
 
 
 def uniform_names(prog) -> frozenset[str]:

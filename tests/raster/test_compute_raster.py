@@ -826,11 +826,11 @@ def test_a_still_scene_sends_its_draw_records_once(renderer_factory, monkeypatch
     r = renderer_factory("exact", method="presort_lf_et", method_overrides={"raster": "compute"})
     scene = layered_quads_scene(n_layers=3)
     first = r.render(scene, 32, 32)
-    records = r.raster.compute._records
+    staging = r.raster.compute._records._staging  # UploadBuffer: what the CPU writes, copied on the GPU
     writes = []
     write = moderngl.Buffer.write
     monkeypatch.setattr(
-        moderngl.Buffer, "write", lambda b, *a, **k: (writes.append(b is records), write(b, *a, **k))[1]
+        moderngl.Buffer, "write", lambda b, *a, **k: (writes.append(b is staging), write(b, *a, **k))[1]
     )
     again = r.render(scene, 32, 32)
     assert not any(writes) and np.array_equal(again.image, first.image)
