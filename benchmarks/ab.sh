@@ -54,8 +54,12 @@ for pack in "${packs[@]}"; do
   ln -s "$root/.scenes" "$work/$name/.scenes"
 done
 mkdir -p "$out"
-base_path=${PYTHONPATH:-}
-base_path=${base_path//$root/}  # this checkout's own package must not shadow the tree under test
+# the Python path set up here, less this checkout (its package must not shadow the tree under test)
+base_path=""
+IFS=: read -ra entries <<< "${PYTHONPATH:-}"
+for entry in "${entries[@]}"; do
+  [[ -n $entry && $entry != "$root" && $entry != "$root/" ]] && base_path+="${base_path:+:}$entry"
+done
 failed=0
 for ((round = 1; round <= rounds; round++)); do
   for pack in "${packs[@]}"; do
