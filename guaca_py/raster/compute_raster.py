@@ -478,7 +478,7 @@ class ComputeRasterizer:
                 vbo.bind_to_storage_buffer(Buffer.RASTER_MESH_VERTICES)
                 ibo.bind_to_storage_buffer(Buffer.RASTER_INDICES)
             kernels = programs.get(id(d.material))
-            if kernels is None:  # per material, for this call (the method's state is fixed)
+            if kernels is None:  # once a material a call: _programs' key (a nested tuple) is hashed anew each look-up
                 kernels = programs[id(d.material)] = self._programs(frame.method, d, method_key)
             vert, setup, binner, fine = kernels
             for prog in kernels:
