@@ -28,7 +28,6 @@ import moderngl
 
 from .errors import GuacaError
 from .gl_state import BOOL, FLOAT, INT, RawGL, load_library, raw_gl
-from .shaders.slots import Buffer
 
 # ---- GL enums ---------------------------------------------------------------------------
 GL_TEXTURE0 = 0x84C0
@@ -101,10 +100,9 @@ _BUFFER_TARGETS = {
     0x92C1: 0x92C0,  # ATOMIC_COUNTER_BUFFER (generic)
 }
 # Indexed buffer binding points guaca binds: target -> (binding, start, size, max-count query, slots saved).
-# (guaca binds storage buffers below the slot table's top and never binds uniform or atomic-counter
-# buffers by index.)
+# (guaca binds storage buffers below 18 and never binds uniform or atomic-counter buffers by index.)
 _INDEXED_BUFFERS = {
-    0x90D2: (0x90D3, 0x90D4, 0x90D5, 0x90DD, max(s.number + s.count for s in Buffer.TABLE.values())),  # SSBO
+    0x90D2: (0x90D3, 0x90D4, 0x90D5, 0x90DD, 18),  # SHADER_STORAGE_BUFFER
 }
 # Texture targets guaca binds (2D, and 2D arrays for the light grid): (binding query, target).
 _TEXTURE_TARGETS = (
@@ -126,7 +124,7 @@ class HostGLState:
     enable/mode, front face, polygon mode and offset, provoking vertex, clip control and clip
     distances, the capabilities in `_CAPS`, the active texture unit, 2D and 2D-array texture
     bindings on units 0-31 and moderngl's default unit, image units 0-15, storage-buffer
-    bindings of the slot table (with their ranges), the non-indexed buffer bindings (array, copy, pixel
+    bindings 0-17 (with their ranges), the non-indexed buffer bindings (array, copy, pixel
     pack/unpack, indirect, query, texture, SSBO/UBO/atomic generic), the current program and
     vertex array, and pack/unpack alignment. That is a superset of what guaca's passes change;
     the rest (sampler objects, 3D/cube textures, indexed UBOs, stencil functions, transform
