@@ -238,18 +238,23 @@ class ComputeRasterizer:
             hit = self._kernels[("call", buckets, tuning)] = (args, order_kernels)
         return hit
 
-    def _programs(self, method, draw, method_key: tuple | None = None):
-        """(vertex, setup, bin, fine) kernels for the draw's material and `method`, compiled once.
-
-        With `method_key` (_method_key) remembered per material and key: the program cache's key of
-        each kernel freezes every template variable, some hundred calls a material and frame otherwise.
-        """
+    def _programs(self, method, draw, method_key: tuple):
+        """(vertex, setup, bin, fine) kernels for the draw's material and `method`, remembered per material
+        and `method_key` (_method_key): the program cache's key of each kernel freezes every template
+        variable, some hundred calls a material and frame otherwise."""
         mat = draw.material
-        hit = self._kernels.get((id(mat), method_key)) if method_key is not None else None
+        hit = self._kernels.get((id(mat), method_key))
         if hit is not None and hit[0] is mat:
             return hit[1]
         if len(self._kernels) >= MAX_REMEMBERED_KERNELS:  # materials or methods replaced over and over
             self._kernels.clear()
+        kernels = self._build_programs(method, draw)
+        self._kernels[(id(mat), method_key)] = (mat, kernels)
+        return kernels
+
+    def _build_programs(self, method, draw) -> tuple:
+        """(vertex, setup, bin, fine) kernels for the draw's material and `method`, from the program cache."""
+        mat = draw.material
         cm = self._material(mat).compute
         if cm.problem:
             raise ConfigError(cm.problem, mat.path, None, "transparency.raster")
@@ -280,8 +285,6 @@ class ComputeRasterizer:
                     self.device.programs, mat, skeleton, f", compute raster {stage}", cm.sources, record=True
                 )
             )
-        if method_key is not None:
-            self._kernels[(id(mat), method_key)] = (mat, tuple(kernels))
         return tuple(kernels)
 
     def _kernel(self, template: str, **variables):

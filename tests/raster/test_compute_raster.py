@@ -393,7 +393,7 @@ def test_gpu_variants_generate_compute_kernels(renderer_factory):
     cr = r.raster.compute
     cr.device.programs.program = lambda stages, smap, label: stages  # capture, do not compile
     try:
-        stages = [s["compute_shader"] for s in cr._programs(m, draw)]
+        stages = [s["compute_shader"] for s in cr._build_programs(m, draw)]
     finally:
         del cr.device.programs.program
     for template, variables in stages[1:]:
@@ -525,7 +525,7 @@ def test_gpu_variants_pass_the_reference_compiler(renderer_factory, tmp_path, me
         for node in scene.nodes:
             node.material = MaterialInstance(node.name, mats[node.name])
         draws = build_draw_list(scene, r.materials)
-        stages = [s["compute_shader"] for d in draws for s in cr._programs(m, d)]
+        stages = [s["compute_shader"] for d in draws for s in cr._build_programs(m, d)]
     finally:
         del cr.device.programs.program
     assert all(d.transparent for d in draws) and len(stages) == 4 * len(mats)
