@@ -10,15 +10,15 @@ from dataclasses import fields
 
 import numpy as np
 
-_PLAIN = frozenset((float, int, bool, str, type(None)))  # hashable and compared by value as they are
+PLAIN = frozenset((float, int, bool, str, type(None)))  # hashable and compared by value as they are
 
 
 def freeze(value):
     """A hashable stand-in for a value (lists and arrays become tuples, dicts sorted item tuples; objects stay)."""
     kind = type(value)
-    if kind in _PLAIN:
+    if kind in PLAIN:
         return value
-    if (kind is tuple or kind is list) and set(map(type, value)) <= _PLAIN:
+    if (kind is tuple or kind is list) and set(map(type, value)) <= PLAIN:
         return tuple(value)  # plain items as they are: the common case, a handful of calls a node a frame
     if isinstance(value, (list, tuple, np.ndarray)):
         return tuple(freeze(v) for v in value)

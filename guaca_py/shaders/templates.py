@@ -11,7 +11,7 @@ import numpy as np
 
 from ..context import is_software
 from ..errors import ShaderCompileError
-from ..frozen import freeze
+from ..frozen import PLAIN, freeze
 from ..resources import builtin_dir
 from . import slots
 
@@ -143,9 +143,6 @@ class ShaderLibrary:
         return self.program({"compute_shader": (template, variables)}, label=template)
 
 
-_SCALARS = frozenset((str, int, float, bool, type(None)))
-
-
 def program_key(stages: dict[str, tuple[str, dict]]) -> tuple:
     """The cache key of a program: each stage's template and its variables, frozen.
 
@@ -154,7 +151,7 @@ def program_key(stages: dict[str, tuple[str, dict]]) -> tuple:
     """
     return tuple(
         sorted(
-            (stage, tpl, tuple(sorted((k, v if type(v) in _SCALARS else freeze(v)) for k, v in vars_.items())))
+            (stage, tpl, tuple(sorted((k, v if type(v) in PLAIN else freeze(v)) for k, v in vars_.items())))
             for stage, (tpl, vars_) in stages.items()
         )
     )
